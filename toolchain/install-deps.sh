@@ -1,7 +1,11 @@
 #!/usr/bin/env bash
 # Installs every Debian 12 package hwr-perception needs, skipping those already present.
-# Usage: toolchain/install-deps.sh [--with-bench-peers]
-#   --with-bench-peers also installs packages only the peer benchmarks use.
+# Usage: toolchain/install-deps.sh [--with-bench-peers] [--agx]
+#   --with-bench-peers  also installs packages only the peer benchmarks use.
+#   --agx               also installs the aarch64 cross compiler and qemu-user, and builds the
+#                       arm64 sysroot for `cmake --preset agx` (toolchain/make-agx-sysroot.sh;
+#                       Debian's amd64 and arm64 -dev packages of OpenCV, yaml-cpp, FLANN and LCM
+#                       cannot be installed side by side, so they are unpacked into a folder).
 # Idempotent: a second run installs nothing and exits 0.
 set -euo pipefail
 
@@ -20,26 +24,35 @@ packages=(
   libgtest-dev libgmock-dev libbenchmark-dev
 )
 bench_peers=()
-if [[ "${1:-}" == "--with-bench-peers" ]]; then
-  bench_peers=(libopencv-contrib-dev)
-fi
+agx=()
+agx_packages=(g++-aarch64-linux-gnu qemu-user binutils-aarch64-linux-gnu)
+for arg in "$@"; do
+  case "$arg" in
+    --with-bench-peers) bench_peers=(libopencv-contrib-dev) ;;
+    --agx) agx=("${agx_packages[@]}") ;;
+    *) echo "install-deps: unknown option '$arg' (use --with-bench-peers, --agx)" >&2; exit 2 ;;
+  esac
+done
+
+SUDO=""
+if [[ $(id -u) -ne 0 ]]; then SUDO="sudo"; fi
 
 missing=()
-for p in "${packages[@]}" "${bench_peers[@]}"; do
+for p in "${packages[@]}" "${bench_peers[@]}" "${agx[@]}"; do
   if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then
     missing+=("$p")
   fi
 done
 
 if ((${#missing[@]} == 0)); then
-  echo "install-deps: all ${#packages[@]} packages present"
-  exit 0
+  echo "install-deps: all $((${#packages[@]} + ${#bench_peers[@]} + ${#agx[@]})) packages present"
+else
+  echo "install-deps: installing ${#missing[@]} missing package(s): ${missing[*]}"
+  export DEBIAN_FRONTEND=noninteractive
+  $SUDO apt-get update -q
+  $SUDO apt-get install -y -q --no-install-recommends "${missing[@]}"
+  echo "install-deps: done"
 fi
-
-echo "install-deps: installing ${#missing[@]} missing package(s): ${missing[*]}"
-SUDO=""
-if [[ $(id -u) -ne 0 ]]; then SUDO="sudo"; fi
-export DEBIAN_FRONTEND=noninteractive
-$SUDO apt-get update -q
-$SUDO apt-get install -y -q --no-install-recommends "${missing[@]}"
-echo "install-deps: done"
+if ((${#agx[@]})); then
+  "$(dirname "${BASH_SOURCE[0]}")/make-agx-sysroot.sh"
+fi

@@ -2,6 +2,7 @@
 
 #include <yaml-cpp/yaml.h>
 
+#include <cctype>
 #include <cerrno>
 #include <cmath>
 #include <cstdlib>
@@ -18,6 +19,7 @@ struct Node {
   std::string scalar;
   std::vector<Node> items;                            // kSequence
   std::vector<std::pair<std::string, Node>> entries;  // kMap, file order
+  std::vector<int> key_lines;                         // kMap: line of each key (a nested value starts below it)
   mutable std::vector<bool> used;                     // kMap: entry read
   mutable bool entered = false;                       // kMap: a ConfigMap was made for it
 };
@@ -59,6 +61,7 @@ Status convert(const YAML::Node& in, Node* out, const std::string& source) {
           }
         }
         out->entries.emplace_back(key, Node{});
+        out->key_lines.push_back(kv.first.Mark().line + 1);
         HWR_RETURN_IF_ERROR(convert(kv.second, &out->entries.back().second, source));
       }
       out->used.assign(out->entries.size(), false);
@@ -73,7 +76,7 @@ void collect_unknown(const Node& n, const std::string& path, const std::string& 
     for (size_t i = 0; i < n.entries.size(); ++i) {
       const std::string full = path.empty() ? n.entries[i].first : path + "." + n.entries[i].first;
       if (!n.used[i]) {
-        out->push_back(source + ":" + std::to_string(n.entries[i].second.line) + ": unknown key '" + full + "'");
+        out->push_back(source + ":" + std::to_string(n.key_lines[i]) + ": unknown key '" + full + "'");
       } else {
         collect_unknown(n.entries[i].second, full, source, out);
       }
@@ -91,7 +94,8 @@ bool parse_double(const std::string& s, double* out) {
   char* e = nullptr;
   errno = 0;
   const double v = std::strtod(b, &e);
-  if (e == b || *e != '\0' || errno == ERANGE) {
+  // ERANGE on underflow still yields the nearest (subnormal or zero) value; only overflow is an error.
+  if (e == b || *e != '\0' || (errno == ERANGE && std::fabs(v) == HUGE_VAL)) {
     // YAML spellings of special values.
     if (s == ".nan" || s == ".NaN" || s == ".NAN") { *out = std::nan(""); return true; }
     if (s == ".inf" || s == ".Inf" || s == "+.inf") { *out = HUGE_VAL; return true; }
@@ -104,21 +108,36 @@ bool parse_double(const std::string& s, double* out) {
 
 bool parse_int64(const std::string& s, int64_t* out) {
   if (s.empty()) return false;
-  const char* b = s.c_str();
-  char* e = nullptr;
-  errno = 0;
-  const long long v = std::strtoll(b, &e, 0);
-  if (e == b || *e != '\0' || errno == ERANGE) {
-    // Accept integral floats written like 1e6 or 30.0.
-    double d = 0;
-    if (parse_double(s, &d) && std::isfinite(d) && d == std::floor(d) && std::fabs(d) < 9.2e18) {
-      *out = static_cast<int64_t>(d);
+  // YAML 1.2 core schema: decimal (a leading zero is still decimal), 0x hex, 0o octal. strtoll's
+  // base 0 would read "010" as octal 8 and reject "0o17".
+  const bool negative = s[0] == '-';
+  size_t i = (s[0] == '-' || s[0] == '+') ? 1 : 0;
+  int base = 10;
+  if (s.compare(i, 2, "0x") == 0 || s.compare(i, 2, "0X") == 0) {
+    base = 16;
+    i += 2;
+  } else if (s.compare(i, 2, "0o") == 0) {
+    base = 8;
+    i += 2;
+  }
+  // A digit must follow (strtoll would also skip spaces or take a second sign).
+  if (i < s.size() && std::isxdigit(static_cast<unsigned char>(s[i]))) {
+    const std::string digits = (negative ? "-" : "") + s.substr(i);
+    char* e = nullptr;
+    errno = 0;
+    const long long v = std::strtoll(digits.c_str(), &e, base);
+    if (*e == '\0' && errno != ERANGE) {
+      *out = v;
       return true;
     }
-    return false;
   }
-  *out = v;
-  return true;
+  // Accept integral floats written like 1e6 or 30.0.
+  double d = 0;
+  if (base == 10 && parse_double(s, &d) && std::isfinite(d) && d == std::floor(d) && std::fabs(d) < 9.2e18) {
+    *out = static_cast<int64_t>(d);
+    return true;
+  }
+  return false;
 }
 
 bool parse_bool(const std::string& s, bool* out) {
@@ -184,7 +203,7 @@ ConfigMap::ConfigMap(std::shared_ptr<Document> doc, const Node* node, std::strin
   if (node_ != nullptr) node_->entered = true;
 }
 
-int ConfigMap::line() const { return node_ ? node_->line : 0; }
+int ConfigMap::line() const { return node_ ? node_->line : fallback_line_; }
 
 const Node* ConfigMap::find(const char* key) const {
   if (node_ == nullptr) return nullptr;
@@ -213,13 +232,14 @@ std::vector<std::string> ConfigMap::keys() const {
 }
 
 void ConfigMap::record_error(const char* key, const std::string& problem) {
-  const Node* n = nullptr;
+  // The key's own line; for a key that is absent, the line of this mapping (or, when the mapping
+  // itself is absent, of the nearest enclosing one that exists).
+  int line = this->line();
   if (node_ != nullptr) {
-    for (const auto& e : node_->entries) {
-      if (e.first == key) n = &e.second;
+    for (size_t i = 0; i < node_->entries.size(); ++i) {
+      if (node_->entries[i].first == key) line = node_->key_lines[i];
     }
   }
-  const int line = n ? n->line : (node_ ? node_->line : 0);
   const std::string full = path_.empty() ? std::string(key) : path_ + "." + key;
   doc_->errors.push_back(doc_->source + ":" + std::to_string(line) + ": key '" + full + "': " + problem);
 }
@@ -374,11 +394,15 @@ ConfigMap& ConfigMap::get(const char* key, Eigen::Vector4d* out) {
 ConfigMap ConfigMap::child(const char* key) {
   const Node* n = find(key);
   const std::string full = path_.empty() ? std::string(key) : path_ + "." + key;
-  if (n == nullptr) return ConfigMap(doc_, nullptr, full);
-  if (n->kind == Node::Kind::kNull) return ConfigMap(doc_, nullptr, full);
-  if (n->kind != Node::Kind::kMap) {
+  if (n != nullptr && n->kind != Node::Kind::kNull && n->kind != Node::Kind::kMap) {
     record_error(key, "expected a mapping of keys, got " + describe(*n));
-    return ConfigMap(doc_, nullptr, full);
+    n = nullptr;
+  }
+  if (n == nullptr || n->kind == Node::Kind::kNull) {
+    // Absent: errors against its keys point at the nearest mapping that exists.
+    ConfigMap absent(doc_, nullptr, full);
+    absent.fallback_line_ = line();
+    return absent;
   }
   return ConfigMap(doc_, n, full);
 }

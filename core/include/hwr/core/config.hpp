@@ -96,6 +96,7 @@ class ConfigMap {
 
   std::shared_ptr<config_detail::Document> doc_;
   const config_detail::Node* node_ = nullptr;  // nullptr: absent mapping
+  int fallback_line_ = 0;                      // line() of an absent mapping: its nearest existing parent's
   std::string path_;
 };
 
