@@ -1,6 +1,7 @@
 // `hwr-bench sim-render`: single-thread 640x480 RGB-D rendering speed of the simulator on a
 // representative welding workshop (room, boxes, I-beams, pipes, four weld joints) along a moving
-// camera path. Acceptance: >= 60 frames/s on one core (RelWithDebInfo).
+// camera path. Acceptance: >= 60 frames/s on one core (RelWithDebInfo). `--scene=<preset>` runs a
+// scenario preset (lab, outdoor, ...) along its own trajectory instead.
 //
 // Also Google Benchmark micro-benchmarks (run with `hwr-bench micro --benchmark_filter=Sim`).
 
@@ -12,6 +13,7 @@
 #include <cstring>
 #include <ctime>
 #include <memory>
+#include <string>
 #include <vector>
 
 #include <benchmark/benchmark.h>
@@ -20,6 +22,8 @@
 #include "bench_command.hpp"
 #include "hwr/sim/camera_effects.hpp"
 #include "hwr/sim/renderer.hpp"
+#include "hwr/sim/scenario.hpp"
+#include "hwr/sim/trajectory.hpp"
 
 namespace hwr::bench {
 namespace {
@@ -129,36 +133,80 @@ double thread_cpu_ms() {
   return 1e3 * static_cast<double>(ts.tv_sec) + 1e-6 * static_cast<double>(ts.tv_nsec);
 }
 
+// What one run renders: a scene and the camera poses of its frames.
+struct Workload {
+  sim::SceneSpec scene;
+  hal::PinholeIntrinsics intrinsics;
+  sim::RenderOptions options;
+  std::vector<Eigen::Isometry3d> T_scene_cam;
+};
+
+core::Expected<Workload> make_workload(const std::string& name, int frames) {
+  Workload w;
+  if (name == "workshop") {
+    w.scene = workshop_scene();
+    w.intrinsics = vga();
+    for (int i = 0; i < frames; ++i) w.T_scene_cam.push_back(camera_on_path(i, frames));
+    return w;
+  }
+  auto scenario = sim::builtin_scenario(name);
+  if (!scenario.ok()) return scenario.status();
+  auto trajectory = sim::Trajectory::build(scenario->trajectory);
+  if (!trajectory.ok()) return trajectory.status();
+  w.scene = scenario->scene;
+  w.intrinsics = scenario->camera.intrinsics;
+  w.options = scenario->render;
+  const Eigen::Isometry3d T_imu_cam = sim::camera_T_imu_cam(scenario->camera);
+  for (int i = 0; i < frames; ++i) {
+    const double t_s = trajectory->duration_s() * i / std::max(frames - 1, 1);
+    w.T_scene_cam.push_back(trajectory->evaluate(t_s).T_scene_imu * T_imu_cam);
+  }
+  return w;
+}
+
 int run_sim_render(int argc, char** argv) {
   int frames = 300;
-  sim::RenderOptions options;
+  int packet_width = 0;
+  std::string scene = "workshop";
   for (int a = 1; a < argc; ++a) {
     if (std::strncmp(argv[a], "--frames=", 9) == 0) {
       frames = std::max(1, std::atoi(argv[a] + 9));
     } else if (std::strncmp(argv[a], "--packet=", 9) == 0) {
-      options.packet_width = std::atoi(argv[a] + 9);
+      packet_width = std::atoi(argv[a] + 9);
+    } else if (std::strncmp(argv[a], "--scene=", 8) == 0) {
+      scene = argv[a] + 8;
     } else {
-      std::fprintf(stderr, "sim-render: unknown argument '%s' (use --frames=N, --packet=0|1|4|8|16)\n",
+      std::fprintf(stderr,
+                   "sim-render: unknown argument '%s' (use --frames=N, --packet=0|1|4|8|16, "
+                   "--scene=workshop|<scenario preset>)\n",
                    argv[a]);
       return 2;
     }
   }
+  auto workload = make_workload(scene, frames);
+  if (!workload.ok()) {
+    std::fprintf(stderr, "sim-render: scene '%s': %s\n", scene.c_str(),
+                 workload.status().to_string().c_str());
+    return 2;
+  }
+  sim::RenderOptions options = workload->options;
+  options.packet_width = packet_width;
 
   const auto t_build0 = std::chrono::steady_clock::now();
-  auto renderer = sim::Renderer::create(workshop_scene());
+  auto renderer = sim::Renderer::create(workload->scene);
   const auto t_build1 = std::chrono::steady_clock::now();
   if (!renderer.ok()) {
     std::fprintf(stderr, "sim-render: %s\n", renderer.status().to_string().c_str());
     return 1;
   }
-  const hal::PinholeIntrinsics K = vga();
+  const hal::PinholeIntrinsics K = workload->intrinsics;
   cv::Mat bgr, depth;
-  (*renderer)->render(camera_on_path(0, frames), K, options, &bgr, &depth);  // warm-up, allocates
+  (*renderer)->render(workload->T_scene_cam[0], K, options, &bgr, &depth);  // warm-up, allocates
 
   std::vector<double> ms(frames);
   double valid_fraction = 0.0, cpu_ms = 0.0;
   for (int i = 0; i < frames; ++i) {
-    const Eigen::Isometry3d T_scene_cam = camera_on_path(i, frames);
+    const Eigen::Isometry3d& T_scene_cam = workload->T_scene_cam[i];
     const double c0 = thread_cpu_ms();
     const auto t0 = std::chrono::steady_clock::now();
     (*renderer)->render(T_scene_cam, K, options, &bgr, &depth);
@@ -195,7 +243,7 @@ int run_sim_render(int argc, char** argv) {
 }
 
 HWR_BENCH_COMMAND(sim_render, "sim-render",
-                  "simulator 640x480 RGB-D render speed on one thread (--frames=N, --packet=W)",
+                  "simulator 640x480 RGB-D render speed on one thread (--frames=N, --packet=W, --scene=S)",
                   run_sim_render);
 
 // --- Google Benchmark micro-benchmarks -------------------------------------------------------

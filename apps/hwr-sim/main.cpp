@@ -13,14 +13,15 @@
 namespace {
 
 void usage(std::FILE* f) {
-  std::fprintf(f,
-               "usage: hwr-sim --scenario NAME|FILE.yaml --out DIR [--duration S] [--threads N] [--no-images]\n"
-               "  --scenario   a built-in preset (lab, outdoor, lab-revisit, outdoor-revisit) or a YAML file\n"
-               "               whose 'base:' names a preset and whose other keys override it\n"
-               "  --out        output folder (created if missing)\n"
-               "  --duration   simulate only the first S seconds\n"
-               "  --threads    render threads (output is identical for any N; default 1)\n"
-               "  --no-images  sensor streams, ground truth and calibration only\n");
+  std::fprintf(
+      f,
+      "usage: hwr-sim --scenario NAME|FILE.yaml --out DIR [--duration S] [--threads N] [--no-images]\n"
+      "  --scenario   a built-in preset (lab, outdoor, lab-revisit, outdoor-revisit) or a YAML file\n"
+      "               whose 'base:' names a preset and whose other keys override it\n"
+      "  --out        output folder (created if missing)\n"
+      "  --duration   simulate only the first S seconds\n"
+      "  --threads    render threads (output is identical for any N; default 1)\n"
+      "  --no-images  sensor streams, ground truth and calibration only\n");
 }
 
 int fail(const std::string& message) {
@@ -89,7 +90,8 @@ int main(int argc, char** argv) {
   auto progress = [&](size_t done, size_t total) {
     if (total == 0) return;
     const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    std::fprintf(stderr, "\rhwr-sim: frame %zu/%zu (%.0f%%, %.1f s)", done, total, 100.0 * done / total, elapsed);
+    std::fprintf(stderr, "\rhwr-sim: frame %zu/%zu (%.0f%%, %.1f s)", done, total, 100.0 * done / total,
+                 elapsed);
     std::fflush(stderr);
     printed = true;
   };
@@ -101,7 +103,8 @@ int main(int argc, char** argv) {
   std::string files;
   for (const std::string& f : s.files) files += (files.empty() ? "" : " ") + f;
   std::printf(
-      "hwr-sim: %s: %zu frames, %.1f s simulated, path %.1f m, %zu joints, %zu imu / %zu mag / %zu gnss samples, "
+      "hwr-sim: %s: %zu frames, %.1f s simulated, path %.1f m, %zu joints, %zu imu / %zu mag / %zu gnss "
+      "samples, "
       "%.1f s wall -> %s\n",
       s.scenario.c_str(), s.frames, s.simulated_s, s.path_length_m, s.joints, s.imu_samples, s.mag_samples,
       s.gnss_samples, wall, s.out_dir.c_str());

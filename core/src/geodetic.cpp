@@ -48,9 +48,9 @@ Eigen::Matrix3d R_ecef_enu(double lat_deg, double lon_deg) {
   const double lat = lat_deg * kDegToRad, lon = lon_deg * kDegToRad;
   const double sl = std::sin(lat), cl = std::cos(lat), so = std::sin(lon), co = std::cos(lon);
   Eigen::Matrix3d R;
-  R.col(0) << -so, co, 0.0;                // east
-  R.col(1) << -sl * co, -sl * so, cl;      // north
-  R.col(2) << cl * co, cl * so, sl;        // up
+  R.col(0) << -so, co, 0.0;            // east
+  R.col(1) << -sl * co, -sl * so, cl;  // north
+  R.col(2) << cl * co, cl * so, sl;    // up
   return R;
 }
 
@@ -60,7 +60,8 @@ Eigen::Vector3d geodetic_to_enu(const Geodetic& g, const Geodetic& origin) {
 }
 
 Geodetic enu_to_geodetic(const Eigen::Vector3d& p_enu_m, const Geodetic& origin) {
-  const Eigen::Vector3d p_ecef = geodetic_to_ecef(origin) + R_ecef_enu(origin.lat_deg, origin.lon_deg) * p_enu_m;
+  const Eigen::Vector3d p_ecef =
+      geodetic_to_ecef(origin) + R_ecef_enu(origin.lat_deg, origin.lon_deg) * p_enu_m;
   return ecef_to_geodetic(p_ecef);
 }
 

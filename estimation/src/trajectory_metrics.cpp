@@ -1,5 +1,7 @@
 #include "hwr/estimation/trajectory_metrics.hpp"
 
+#include "hwr/core/time_association.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <numeric>
@@ -72,34 +74,16 @@ ErrorStats compute_error_stats(const std::vector<double>& errors) {
 std::vector<PoseMatch> associate_by_time(const std::vector<StampedPose>& gt,
                                          const std::vector<StampedPose>& est, double max_dt_s,
                                          double offset_s) {
-  const int64_t max_dt_ns = core::s_to_ns(max_dt_s);
-  const int64_t offset_ns = core::s_to_ns(offset_s);
+  // core::associate_nearest wants each list in time order; map its indices back afterwards.
   const std::vector<size_t> og = time_order(gt);
   const std::vector<size_t> oe = time_order(est);
-  struct Candidate {
-    int64_t diff;
-    size_t g, e;  // original indices
-  };
-  std::vector<Candidate> candidates;
-  size_t lo = 0;
-  for (size_t a : og) {
-    const int64_t t = gt[a].t_ns;
-    while (lo < oe.size() && est[oe[lo]].t_ns + offset_ns <= t - max_dt_ns) ++lo;
-    for (size_t k = lo; k < oe.size() && est[oe[k]].t_ns + offset_ns < t + max_dt_ns; ++k) {
-      const int64_t d = t - (est[oe[k]].t_ns + offset_ns);
-      candidates.push_back({d < 0 ? -d : d, a, oe[k]});
-    }
-  }
-  std::sort(candidates.begin(), candidates.end(), [](const Candidate& x, const Candidate& y) {
-    return std::tie(x.diff, x.g, x.e) < std::tie(y.diff, y.g, y.e);
-  });
-  std::vector<bool> used_g(gt.size(), false);
-  std::vector<bool> used_e(est.size(), false);
+  std::vector<int64_t> t_gt(og.size()), t_est(oe.size());
+  for (size_t k = 0; k < og.size(); ++k) t_gt[k] = gt[og[k]].t_ns;
+  for (size_t k = 0; k < oe.size(); ++k) t_est[k] = est[oe[k]].t_ns;
   std::vector<PoseMatch> out;
-  for (const Candidate& c : candidates) {
-    if (used_g[c.g] || used_e[c.e]) continue;
-    used_g[c.g] = used_e[c.e] = true;
-    out.push_back({c.g, c.e});
+  for (const core::IndexPair& p :
+       core::associate_nearest(t_gt, t_est, core::s_to_ns(max_dt_s), core::s_to_ns(offset_s))) {
+    out.push_back({og[p.a], oe[p.b]});
   }
   std::sort(out.begin(), out.end(), [](const PoseMatch& x, const PoseMatch& y) { return x.gt < y.gt; });
   return out;

@@ -14,7 +14,7 @@
 #include "hwr/core/time.hpp"
 #include "image_file.hpp"
 #include "text_table.hpp"
-#include "time_association.hpp"
+#include "hwr/core/time_association.hpp"
 
 namespace hwr::hal {
 namespace {
@@ -230,7 +230,7 @@ Expected<EurocDataset> EurocDataset::open(const std::string& mav0_dir, const Eur
     for (int c = 0; c < 2; ++c) {
       for (const Frame& f : ds.cam_[c].frames) t[c].push_back(f.t_ns);
     }
-    for (const IndexPair& p : associate_nearest(t[0], t[1], core::s_to_ns(options.max_stereo_dt_s))) {
+    for (const core::IndexPair& p : core::associate_nearest(t[0], t[1], core::s_to_ns(options.max_stereo_dt_s))) {
       ds.pairs_.push_back({p.a, p.b});
     }
     if (ds.pairs_.empty()) {

@@ -87,8 +87,9 @@ TEST(Geodetic, GivenEnuFrameWhenAxesCheckedThenEastNorthUpAreOrthonormalAndUpIsN
 
 TEST(Geodetic, GivenLocalOffsetsWhenEnuRoundTripThenWithinMicrometre) {
   const Geodetic origin{47.3769, 8.5417, 408.0};
-  for (const Eigen::Vector3d& p : {Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(150.0, -80.0, 2.5),
-                                  Eigen::Vector3d(-1234.5, 987.6, -30.0), Eigen::Vector3d(0.001, 0.002, 0.003)}) {
+  for (const Eigen::Vector3d& p :
+       {Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(150.0, -80.0, 2.5), Eigen::Vector3d(-1234.5, 987.6, -30.0),
+        Eigen::Vector3d(0.001, 0.002, 0.003)}) {
     const Eigen::Vector3d back = geodetic_to_enu(enu_to_geodetic(p, origin), origin);
     EXPECT_LT((back - p).norm(), 1e-6) << p.transpose();
   }

@@ -54,7 +54,8 @@ NavDerivative derivative(const NavState& s, const hal::ImuSample& m, const Eigen
 
 NavState add(const NavState& s, const NavDerivative& d, double h) {
   NavState o;
-  o.q = Eigen::Quaterniond(s.q.w() + h * d.dq[0], s.q.x() + h * d.dq[1], s.q.y() + h * d.dq[2], s.q.z() + h * d.dq[3]);
+  o.q = Eigen::Quaterniond(s.q.w() + h * d.dq[0], s.q.x() + h * d.dq[1], s.q.y() + h * d.dq[2],
+                           s.q.z() + h * d.dq[3]);
   o.v = s.v + h * d.dv;
   o.p = s.p + h * d.dp;
   return o;

@@ -100,7 +100,8 @@ TEST(MagSynth, GivenWalkPastABeamWhenYawComputedThenErrorGrowsNearTheBeamAndVani
     const Eigen::Vector3d p = st.T_scene_imu.translation();
     const Eigen::Vector3d m = st.T_scene_imu.linear().transpose() * magnetic_field_scene_uT(spec, dipoles, p);
     const Eigen::Vector3d x = st.T_scene_imu.linear().col(0);
-    const double err = std::abs(std::remainder(mag_yaw(m, st.T_scene_imu.linear()) - std::atan2(x.y(), x.x()), 2 * M_PI));
+    const double err =
+        std::abs(std::remainder(mag_yaw(m, st.T_scene_imu.linear()) - std::atan2(x.y(), x.x()), 2 * M_PI));
     if (std::abs(p.x()) < 2.0) err_near = std::max(err_near, err);
     if (std::abs(p.x()) > 6.0) err_far = std::max(err_far, err);
   }
@@ -123,7 +124,8 @@ TEST(MagSynth, GivenNoiseWhenSampledThenStdMatchesSigmaAndSeedsAreReproducible) 
   Eigen::Vector3d sum = Eigen::Vector3d::Zero(), sq = Eigen::Vector3d::Zero();
   for (size_t k = 0; k < a.size(); ++k) {
     const TrajectoryState st = traj->evaluate(core::ns_to_s(a[k].t_ns));
-    const Eigen::Vector3d clean = st.T_scene_imu.linear().transpose() * spec.earth_field_scene_uT + spec.hard_iron_uT;
+    const Eigen::Vector3d clean =
+        st.T_scene_imu.linear().transpose() * spec.earth_field_scene_uT + spec.hard_iron_uT;
     const Eigen::Vector3d n = a[k].field_uT - clean;
     sum += n;
     sq += n.cwiseAbs2();

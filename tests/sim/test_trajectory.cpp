@@ -176,8 +176,9 @@ TEST(Trajectory, GivenTimesOutsideTheRunWhenEvaluatedThenTheRobotStandsStill) {
   const TrajectoryState before = traj.evaluate(-5.0), after = traj.evaluate(traj.duration_s() + 100.0);
   EXPECT_EQ(before.v_scene_mps.norm(), 0.0);
   EXPECT_EQ(after.v_scene_mps.norm(), 0.0);
-  EXPECT_LT((after.T_scene_imu.translation() - traj.evaluate(traj.duration_s()).T_scene_imu.translation()).norm(),
-            1e-15);
+  EXPECT_LT(
+      (after.T_scene_imu.translation() - traj.evaluate(traj.duration_s()).T_scene_imu.translation()).norm(),
+      1e-15);
 }
 
 }  // namespace

@@ -88,8 +88,8 @@ Eigen::Vector3d magnetic_field_scene_uT(const MagSpec& spec, const std::vector<M
 }
 
 std::vector<hal::MagSample> synthesize_mag(const Trajectory& trajectory, const MagSpec& spec,
-                                           const std::vector<MagDipole>& dipoles, uint64_t seed, double duration_s,
-                                           int64_t t0_ns) {
+                                           const std::vector<MagDipole>& dipoles, uint64_t seed,
+                                           double duration_s, int64_t t0_ns) {
   std::vector<hal::MagSample> out;
   if (!spec.enabled) return out;
   const std::vector<int64_t> offsets = sample_offsets_ns(spec.rate_hz, duration_s);

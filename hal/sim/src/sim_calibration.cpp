@@ -112,7 +112,8 @@ void read_pose16(core::ConfigMap& m, const char* key, Eigen::Isometry3d* T) {
 }
 }  // namespace
 
-core::Expected<SimCalibration> parse_sim_calibration(const std::string& yaml_text, const std::string& source_name) {
+core::Expected<SimCalibration> parse_sim_calibration(const std::string& yaml_text,
+                                                     const std::string& source_name) {
   auto doc = core::ConfigDocument::parse(yaml_text, source_name);
   if (!doc.ok()) return doc.status();
   core::ConfigMap root = doc->root();
@@ -135,7 +136,8 @@ core::Expected<SimCalibration> parse_sim_calibration(const std::string& yaml_tex
   core::ConfigMap imu = root.child("imu");
   imu.require("rate_hz", &c.imu_rate_hz).require("gravity_mps2", &c.gravity_mps2);
   imu.require("noise_enabled", &c.imu_noise_enabled);
-  imu.require("gyro_noise_density", &c.gyro_noise_density).require("accel_noise_density", &c.accel_noise_density);
+  imu.require("gyro_noise_density", &c.gyro_noise_density)
+      .require("accel_noise_density", &c.accel_noise_density);
   imu.require("gyro_random_walk", &c.gyro_random_walk).require("accel_random_walk", &c.accel_random_walk);
   core::ConfigMap mag = root.child("mag");
   mag.require("enabled", &c.mag_enabled).require("rate_hz", &c.mag_rate_hz);

@@ -11,7 +11,16 @@ namespace hwr::sim::text {
 std::string num(double v) {
   if (std::isnan(v)) return ".nan";
   if (std::isinf(v)) return v > 0 ? ".inf" : "-.inf";
-  char buf[40];
+  if (v == 0.0) return "0";  // also -0
+  char buf[64];
+  // Plain decimals where they are short ("20", "0.00024"), else the shortest exponent form.
+  const double a = std::abs(v);
+  if (a >= 1e-6 && a < 1e15) {
+    for (int d = 0; d <= 17; ++d) {
+      std::snprintf(buf, sizeof(buf), "%.*f", d, v);
+      if (std::strtod(buf, nullptr) == v) return buf;
+    }
+  }
   for (int p = 1; p <= 17; ++p) {
     std::snprintf(buf, sizeof(buf), "%.*g", p, v);
     if (std::strtod(buf, nullptr) == v) break;

@@ -33,7 +33,9 @@ constexpr double kGlW[4] = {0.3626837833783620, 0.3137066458778873, 0.2223810344
 
 Eigen::Vector2d d1(const Span& sp, double tau) { return sp.c1 + tau * (2.0 * sp.c2 + tau * 3.0 * sp.c3); }
 Eigen::Vector2d d2(const Span& sp, double tau) { return 2.0 * sp.c2 + 6.0 * tau * sp.c3; }
-Eigen::Vector2d pos(const Span& sp, double tau) { return sp.c0 + tau * (sp.c1 + tau * (sp.c2 + tau * sp.c3)); }
+Eigen::Vector2d pos(const Span& sp, double tau) {
+  return sp.c0 + tau * (sp.c1 + tau * (sp.c2 + tau * sp.c3));
+}
 
 double arc_length(const Span& sp, double a, double b) {
   const double mid = 0.5 * (a + b), half = 0.5 * (b - a);
@@ -153,19 +155,26 @@ bool finite2(const Eigen::Vector2d& v) { return std::isfinite(v.x()) && std::isf
 
 core::Expected<Trajectory> Trajectory::build(const TrajectorySpec& spec) {
   const auto& wp = spec.waypoints;
-  if (wp.size() < 2) return core::InvalidArgument("trajectory: needs at least 2 waypoints, got " + std::to_string(wp.size()));
+  if (wp.size() < 2)
+    return core::InvalidArgument("trajectory: needs at least 2 waypoints, got " + std::to_string(wp.size()));
   auto positive = [](double v) { return std::isfinite(v) && v > 0.0; };
-  if (!positive(spec.cruise_speed_mps)) return core::InvalidArgument("trajectory: cruise_speed_mps must be > 0");
+  if (!positive(spec.cruise_speed_mps))
+    return core::InvalidArgument("trajectory: cruise_speed_mps must be > 0");
   if (!positive(spec.ramp_time_s)) return core::InvalidArgument("trajectory: ramp_time_s must be > 0");
-  if (!positive(spec.turn_rate_radps)) return core::InvalidArgument("trajectory: turn_rate_radps must be > 0");
-  if (!positive(spec.min_turn_time_s)) return core::InvalidArgument("trajectory: min_turn_time_s must be > 0");
+  if (!positive(spec.turn_rate_radps))
+    return core::InvalidArgument("trajectory: turn_rate_radps must be > 0");
+  if (!positive(spec.min_turn_time_s))
+    return core::InvalidArgument("trajectory: min_turn_time_s must be > 0");
   if (!positive(spec.step_length_m)) return core::InvalidArgument("trajectory: step_length_m must be > 0");
-  if (!std::isfinite(spec.imu_height_m) || !std::isfinite(spec.bob_m_per_mps) || !std::isfinite(spec.roll_rad_per_mps)) {
-    return core::InvalidArgument("trajectory: imu_height_m, bob_m_per_mps and roll_rad_per_mps must be finite");
+  if (!std::isfinite(spec.imu_height_m) || !std::isfinite(spec.bob_m_per_mps) ||
+      !std::isfinite(spec.roll_rad_per_mps)) {
+    return core::InvalidArgument(
+        "trajectory: imu_height_m, bob_m_per_mps and roll_rad_per_mps must be finite");
   }
   for (size_t i = 0; i < wp.size(); ++i) {
     const std::string who = "trajectory: waypoint " + std::to_string(i);
-    if (!finite2(wp[i].xy_m) || !std::isfinite(wp[i].dwell_s) || wp[i].dwell_s < 0.0 || !finite2(wp[i].look_at_xy_m)) {
+    if (!finite2(wp[i].xy_m) || !std::isfinite(wp[i].dwell_s) || wp[i].dwell_s < 0.0 ||
+        !finite2(wp[i].look_at_xy_m)) {
       return core::InvalidArgument(who + ": values must be finite and dwell_s >= 0");
     }
     if (i > 0 && (wp[i].xy_m - wp[i - 1].xy_m).norm() < 1e-3) {
@@ -183,7 +192,9 @@ core::Expected<Trajectory> Trajectory::build(const TrajectorySpec& spec) {
   for (size_t i = 0; i <= last; ++i) {
     if (i == 0 || i == last || wp[i].dwell_s > 0.0) stop_idx.push_back(i);
   }
-  auto chord = [&](size_t from, size_t to) -> Eigen::Vector2d { return (wp[to].xy_m - wp[from].xy_m).normalized(); };
+  auto chord = [&](size_t from, size_t to) -> Eigen::Vector2d {
+    return (wp[to].xy_m - wp[from].xy_m).normalized();
+  };
   // Arrival and departure tangents at each stop.
   std::vector<Eigen::Vector2d> arrive(stop_idx.size()), depart(stop_idx.size());
   for (size_t k = 0; k < stop_idx.size(); ++k) {
@@ -296,7 +307,8 @@ TrajectoryState Trajectory::evaluate(double t_s) const {
   st.t_s = t_s;
   const double t = std::clamp(t_s, 0.0, duration_s_);
   // Last phase starting at or before t.
-  auto it = std::upper_bound(phases_.begin(), phases_.end(), t, [](double x, const Phase& p) { return x < p.t0_s; });
+  auto it = std::upper_bound(phases_.begin(), phases_.end(), t,
+                             [](double x, const Phase& p) { return x < p.t0_s; });
   const Phase& ph = (it == phases_.begin()) ? phases_.front() : *(it - 1);
   const double tau = std::max(0.0, t - ph.t0_s);
 
@@ -307,7 +319,8 @@ TrajectoryState Trajectory::evaluate(double t_s) const {
   if (ph.kind == Phase::Kind::kWalk) {
     const Piece& p = pieces_[ph.piece];
     arc = profile(p, tau);
-    auto sit = std::upper_bound(p.spans.begin(), p.spans.end(), arc.s, [](double s, const Span& sp) { return s < sp.s0; });
+    auto sit = std::upper_bound(p.spans.begin(), p.spans.end(), arc.s,
+                                [](double s, const Span& sp) { return s < sp.s0; });
     const Span& sp = (sit == p.spans.begin()) ? p.spans.front() : *(sit - 1);
     const double u = invert_arc_length(sp, arc.s - sp.s0);
     xy = pos(sp, u);
@@ -344,7 +357,8 @@ TrajectoryState Trajectory::evaluate(double t_s) const {
   const double sb = std::sin(ph_bob), cb = std::cos(ph_bob);
   const double z = spec_.imu_height_m + A * arc.sd * sb;
   const double zd = A * (arc.sdd * sb + arc.sd * cb * ph_d);
-  const double zdd = A * (arc.sddd * sb + 2.0 * arc.sdd * cb * ph_d - arc.sd * sb * ph_d * ph_d + arc.sd * cb * ph_dd);
+  const double zdd =
+      A * (arc.sddd * sb + 2.0 * arc.sdd * cb * ph_d - arc.sd * sb * ph_d * ph_d + arc.sd * cb * ph_dd);
   const double sh = std::sin(0.5 * ph_bob), ch = std::cos(0.5 * ph_bob);
   const double roll = B * arc.sd * sh;
   const double roll_d = B * (arc.sdd * sh + arc.sd * ch * 0.5 * ph_d);

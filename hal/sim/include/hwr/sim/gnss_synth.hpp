@@ -27,12 +27,12 @@ struct GnssDropout {
 struct GnssSpec {
   bool enabled = false;
   double rate_hz = 5.0;
-  core::Geodetic origin{47.3769, 8.5417, 408.0};  // WGS-84 position of the scene origin
+  core::Geodetic origin{47.3769, 8.5417, 408.0};    // WGS-84 position of the scene origin
   Eigen::Vector3d antenna_imu_m{-0.10, 0.0, 0.45};  // antenna in the IMU frame (on the head)
   bool noise_enabled = true;
-  double sigma_h_m = 1.0;              // 1-sigma error of east and of north
-  double sigma_v_m = 2.0;              // 1-sigma error of up
-  double correlated_fraction = 0.7;    // share of the variance in the Gauss-Markov part
+  double sigma_h_m = 1.0;            // 1-sigma error of east and of north
+  double sigma_v_m = 2.0;            // 1-sigma error of up
+  double correlated_fraction = 0.7;  // share of the variance in the Gauss-Markov part
   double correlation_time_s = 60.0;
   std::vector<GnssDropout> dropouts;
   double random_dropouts_per_min = 0.5;  // Poisson rate of extra dropouts

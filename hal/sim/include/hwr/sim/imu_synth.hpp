@@ -21,10 +21,10 @@ struct ImuNoiseSpec {
   // false: ideal measurements (no white noise, no random walk, zero biases).
   bool enabled = true;
   // Defaults near a MEMS IMU of the ZED 2i / Handsfree A9 class (BMI085-like datasheet values).
-  double gyro_noise_density = 2.4e-4;       // rad/s/sqrt(Hz)   (0.014 deg/s/sqrt(Hz))
-  double accel_noise_density = 1.6e-3;      // m/s^2/sqrt(Hz)   (160 ug/sqrt(Hz))
-  double gyro_random_walk = 2.0e-5;         // rad/s^2/sqrt(Hz)
-  double accel_random_walk = 3.0e-4;        // m/s^3/sqrt(Hz)
+  double gyro_noise_density = 2.4e-4;   // rad/s/sqrt(Hz)   (0.014 deg/s/sqrt(Hz))
+  double accel_noise_density = 1.6e-3;  // m/s^2/sqrt(Hz)   (160 ug/sqrt(Hz))
+  double gyro_random_walk = 2.0e-5;     // rad/s^2/sqrt(Hz)
+  double accel_random_walk = 3.0e-4;    // m/s^3/sqrt(Hz)
   Eigen::Vector3d gyro_bias_initial_radps{0.002, -0.0015, 0.001};
   Eigen::Vector3d accel_bias_initial_mps2{0.03, -0.02, 0.04};
 };

@@ -27,7 +27,7 @@ struct MagDisturbanceSpec {
   double min_distance_m = 0.25;     // field evaluated no closer than this (no singularity)
   double cutoff_begin_m = 1.5;      // full strength inside, zero beyond cutoff_end_m
   double cutoff_end_m = 3.0;
-  double remanent_fraction = 0.3;   // share of the moment in a random (seeded) direction
+  double remanent_fraction = 0.3;  // share of the moment in a random (seeded) direction
 };
 
 struct MagSpec {
@@ -36,7 +36,7 @@ struct MagSpec {
   Eigen::Vector3d earth_field_scene_uT{0.0, 20.0, -40.0};
   Eigen::Vector3d hard_iron_uT{1.5, -2.0, 0.8};  // constant offset in the sensor frame
   bool noise_enabled = true;
-  double noise_sigma_uT = 0.3;                   // white, per axis and sample
+  double noise_sigma_uT = 0.3;  // white, per axis and sample
   MagDisturbanceSpec disturbance;
 };
 
@@ -55,7 +55,7 @@ Eigen::Vector3d magnetic_field_scene_uT(const MagSpec& spec, const std::vector<M
 
 // Samples at sample_offsets_ns(rate_hz, duration_s); t_ns = t0_ns + offset. Empty if disabled.
 std::vector<hal::MagSample> synthesize_mag(const Trajectory& trajectory, const MagSpec& spec,
-                                           const std::vector<MagDipole>& dipoles, uint64_t seed, double duration_s,
-                                           int64_t t0_ns);
+                                           const std::vector<MagDipole>& dipoles, uint64_t seed,
+                                           double duration_s, int64_t t0_ns);
 
 }  // namespace hwr::sim

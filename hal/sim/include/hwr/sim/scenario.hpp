@@ -41,8 +41,8 @@ struct CameraSpec {
   double roll_deg = 0.0;
   // Raw 16-bit depth units per metre: 5000 indoors (TUM), 1000 outdoors (20 m fits in 16 bits).
   double depth_scale = 5000.0;
-  bool stereo = false;        // also render a right image (rectified pair, same intrinsics)
-  double baseline_m = 0.12;   // right camera at +baseline along the left camera's x axis
+  bool stereo = false;       // also render a right image (rectified pair, same intrinsics)
+  double baseline_m = 0.12;  // right camera at +baseline along the left camera's x axis
 
   static hal::PinholeIntrinsics default_intrinsics() {
     hal::PinholeIntrinsics k;
@@ -69,15 +69,15 @@ struct ExposureEvent {
 
 struct ScenarioSpec {
   std::string name;
-  std::string base;        // preset it derives from (written to scenario_resolved.yaml)
-  uint64_t seed = 1;       // sensor noise, magnetic disturbers, GNSS dropouts, image noise
+  std::string base;   // preset it derives from (written to scenario_resolved.yaml)
+  uint64_t seed = 1;  // sensor noise, magnetic disturbers, GNSS dropouts, image noise
   int64_t start_time_ns = 1'700'000'000'000'000'000;  // time stamp of the first sample
-  double duration_s = 0.0;  // > 0: stop the run early; 0: the whole trajectory
+  double duration_s = 0.0;                            // > 0: stop the run early; 0: the whole trajectory
   SceneSpec scene;
   TrajectorySpec trajectory;
   CameraSpec camera;
   DepthNoiseSpec depth_noise;
-  ExposureSpec exposure;   // base gain and pixel noise
+  ExposureSpec exposure;  // base gain and pixel noise
   std::vector<ExposureEvent> exposure_events;
   RenderOptions render;
   ImuSpec imu;
@@ -91,7 +91,8 @@ core::Expected<ScenarioSpec> builtin_scenario(const std::string& name);
 
 // YAML text -> scenario. `base: <preset>` starts from a preset (otherwise from defaults with an
 // empty scene and no waypoints); every key given overrides. source_name appears in messages.
-core::Expected<ScenarioSpec> parse_scenario_yaml(const std::string& yaml_text, const std::string& source_name);
+core::Expected<ScenarioSpec> parse_scenario_yaml(const std::string& yaml_text,
+                                                 const std::string& source_name);
 core::Expected<ScenarioSpec> load_scenario_file(const std::string& path);
 // A preset name, or a path to a .yaml/.yml file.
 core::Expected<ScenarioSpec> load_scenario(const std::string& name_or_path);

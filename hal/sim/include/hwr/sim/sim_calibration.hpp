@@ -27,18 +27,18 @@ struct SimCalibration {
 
   hal::PinholeIntrinsics intrinsics;
   double camera_rate_hz = 0.0;
-  double depth_scale = 0.0;                  // raw 16-bit units per metre
+  double depth_scale = 0.0;  // raw 16-bit units per metre
   Eigen::Isometry3d T_imu_cam = Eigen::Isometry3d::Identity();
   bool stereo = false;
-  double baseline_m = 0.0;                   // right camera at +baseline along x_cam
+  double baseline_m = 0.0;  // right camera at +baseline along x_cam
 
   double imu_rate_hz = 0.0;
   double gravity_mps2 = 0.0;
   bool imu_noise_enabled = false;
-  double gyro_noise_density = 0.0;           // rad/s/sqrt(Hz)
-  double accel_noise_density = 0.0;          // m/s^2/sqrt(Hz)
-  double gyro_random_walk = 0.0;             // rad/s^2/sqrt(Hz)
-  double accel_random_walk = 0.0;            // m/s^3/sqrt(Hz)
+  double gyro_noise_density = 0.0;   // rad/s/sqrt(Hz)
+  double accel_noise_density = 0.0;  // m/s^2/sqrt(Hz)
+  double gyro_random_walk = 0.0;     // rad/s^2/sqrt(Hz)
+  double accel_random_walk = 0.0;    // m/s^3/sqrt(Hz)
 
   bool mag_enabled = false;
   double mag_rate_hz = 0.0;
@@ -49,7 +49,7 @@ struct SimCalibration {
 
   bool gnss_enabled = false;
   double gnss_rate_hz = 0.0;
-  core::Geodetic gnss_origin;                // WGS-84 position of the scene origin (ENU frame)
+  core::Geodetic gnss_origin;  // WGS-84 position of the scene origin (ENU frame)
   Eigen::Vector3d gnss_antenna_imu_m = Eigen::Vector3d::Zero();
   double gnss_sigma_h_m = 0.0;
   double gnss_sigma_v_m = 0.0;
@@ -62,7 +62,8 @@ SimCalibration make_sim_calibration(const ScenarioSpec& spec, const Eigen::Isome
 // Writes YAML (poses as 4x4 row-major lists of 16 numbers, shortest exact decimal text).
 std::string sim_calibration_to_yaml(const SimCalibration& calib);
 core::Status save_sim_calibration(const std::string& path, const SimCalibration& calib);
-core::Expected<SimCalibration> parse_sim_calibration(const std::string& yaml_text, const std::string& source_name);
+core::Expected<SimCalibration> parse_sim_calibration(const std::string& yaml_text,
+                                                     const std::string& source_name);
 core::Expected<SimCalibration> load_sim_calibration(const std::string& path);
 
 }  // namespace hwr::sim

@@ -58,8 +58,8 @@ struct TrajectoryState {
   Eigen::Vector3d v_scene_mps = Eigen::Vector3d::Zero();
   Eigen::Vector3d a_scene_mps2 = Eigen::Vector3d::Zero();
   Eigen::Vector3d omega_imu_radps = Eigen::Vector3d::Zero();  // body angular velocity, IMU frame
-  double speed_mps = 0.0;    // along the floor path
-  double distance_m = 0.0;   // floor path length walked so far
+  double speed_mps = 0.0;                                     // along the floor path
+  double distance_m = 0.0;                                    // floor path length walked so far
 };
 
 // One stop of the timeline.
@@ -89,26 +89,26 @@ class Trajectory {
   const TrajectorySpec& spec() const { return spec_; }
 
   // Internals, public only so the implementation file can name them.
-  struct Span {                            // S(tau) = c0 + c1 tau + c2 tau^2 + c3 tau^3, tau in [0, h]
+  struct Span {  // S(tau) = c0 + c1 tau + c2 tau^2 + c3 tau^3, tau in [0, h]
     Eigen::Vector2d c0, c1, c2, c3;
-    double h = 0.0;                        // chord length (parameter span)
-    double s0 = 0.0;                       // arc length at the span start, within the piece
-    static constexpr int kSub = 8;         // quadrature subintervals
-    double cum[kSub + 1] = {};             // arc length from the span start to each subinterval start
+    double h = 0.0;                 // chord length (parameter span)
+    double s0 = 0.0;                // arc length at the span start, within the piece
+    static constexpr int kSub = 8;  // quadrature subintervals
+    double cum[kSub + 1] = {};      // arc length from the span start to each subinterval start
   };
   struct Piece {
     std::vector<Span> spans;
     double length_m = 0.0;
-    double distance0_m = 0.0;              // path walked before this piece
+    double distance0_m = 0.0;  // path walked before this piece
     double v_peak_mps = 0.0, t_ramp_s = 0.0, t_cruise_s = 0.0;
   };
   struct Phase {
     enum class Kind { kWalk, kTurn, kDwell } kind = Kind::kDwell;
     double t0_s = 0.0, t1_s = 0.0;
-    size_t piece = 0;                      // kWalk
+    size_t piece = 0;                                // kWalk
     Eigen::Vector2d xy_m = Eigen::Vector2d::Zero();  // kTurn, kDwell
-    double yaw0_rad = 0.0, dyaw_rad = 0.0; // kTurn: yaw0 + dyaw * smoothstep; kDwell: yaw0
-    double distance_m = 0.0;               // kTurn, kDwell
+    double yaw0_rad = 0.0, dyaw_rad = 0.0;           // kTurn: yaw0 + dyaw * smoothstep; kDwell: yaw0
+    double distance_m = 0.0;                         // kTurn, kDwell
   };
 
  private:

@@ -1,13 +1,12 @@
 #pragma once
-// Private to hal: association of two timestamp lists as TUM's associate.py does it. (The same
-// rule lives in estimation's trajectory_metrics for trajectories; it belongs in core once core
-// has a home for it.)
+// Association of two timestamp lists as TUM's associate.py does it: used to pair colour and depth
+// images, stereo frames, and estimated with ground-truth poses.
 
 #include <cstddef>
 #include <cstdint>
 #include <vector>
 
-namespace hwr::hal {
+namespace hwr::core {
 
 struct IndexPair {
   size_t a = 0;
@@ -20,4 +19,4 @@ struct IndexPair {
 std::vector<IndexPair> associate_nearest(const std::vector<int64_t>& a, const std::vector<int64_t>& b,
                                          int64_t max_dt_ns, int64_t offset_ns = 0);
 
-}  // namespace hwr::hal
+}  // namespace hwr::core

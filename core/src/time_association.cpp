@@ -1,9 +1,9 @@
-#include "time_association.hpp"
+#include "hwr/core/time_association.hpp"
 
 #include <algorithm>
 #include <tuple>
 
-namespace hwr::hal {
+namespace hwr::core {
 
 std::vector<IndexPair> associate_nearest(const std::vector<int64_t>& a, const std::vector<int64_t>& b,
                                          int64_t max_dt_ns, int64_t offset_ns) {
@@ -36,4 +36,4 @@ std::vector<IndexPair> associate_nearest(const std::vector<int64_t>& a, const st
   return out;
 }
 
-}  // namespace hwr::hal
+}  // namespace hwr::core
