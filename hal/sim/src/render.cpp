@@ -8,7 +8,6 @@
 #include <array>
 #include <cmath>
 #include <cstring>
-#include <cstdlib>
 #include <limits>
 #include <memory>
 #include <string>
@@ -202,8 +201,6 @@ HWR_FORCE_INLINE void shade4(const ShadeContext& c, const TriShade* const* s, co
     _mm_store_ps(z, _mm_and_ps(in_range, t));
     for (int i = 0; i < 4; ++i) *depth[i] = z[i];
   }
-  static const bool kNoTex = getenv("NOTEX") != nullptr;
-  if (kNoTex) { for (int i = 0; i < 4; ++i) { bgr[i][0] = (uint8_t)(u[i] + v[i] + level[i] + k16[i]); } return; }
   for (int i = 0; i < 4; ++i) {
     const detail::Texture& tex = c.textures[s[i]->material];
     detail::sample_shaded(tex, std::min(level[i], tex.levels - 1), u[i], v[i], static_cast<uint32_t>(k16[i]),
@@ -376,6 +373,18 @@ void EmbreeRenderer::render_packets(const ShadeContext& c, const Eigen::Matrix3f
   alignas(64) RayHitN rh;
   alignas(64) int valid[N];
   alignas(16) float d2[N];
+  // Embree writes only tfar and the hit: the other ray fields are set once.
+  for (int i = 0; i < N; ++i) {
+    rh.ray.org_x[i] = c.org[0];
+    rh.ray.org_y[i] = c.org[1];
+    rh.ray.org_z[i] = c.org[2];
+    rh.ray.tnear[i] = 0.0f;
+    rh.ray.time[i] = 0.0f;
+    rh.ray.mask[i] = ~0u;
+    rh.ray.id[i] = static_cast<unsigned>(i);
+    rh.ray.flags[i] = 0;
+    rh.hit.instID[0][i] = RTC_INVALID_GEOMETRY_ID;
+  }
   for (int ty = 0; ty < H; ty += TH) {
     for (int tx = 0; tx < W; tx += TW) {
       for (int i = 0; i < N; ++i) {
@@ -383,20 +392,11 @@ void EmbreeRenderer::render_packets(const ShadeContext& c, const Eigen::Matrix3f
         valid[i] = (px < W && py < H) ? -1 : 0;
         const float xn = (static_cast<float>(px) - cx) * ifx;
         const float yn = (static_cast<float>(py) - cy) * ify;
-        rh.ray.org_x[i] = c.org[0];
-        rh.ray.org_y[i] = c.org[1];
-        rh.ray.org_z[i] = c.org[2];
-        rh.ray.tnear[i] = 0.0f;
         rh.ray.dir_x[i] = R(0, 0) * xn + R(0, 1) * yn + R(0, 2);
         rh.ray.dir_y[i] = R(1, 0) * xn + R(1, 1) * yn + R(1, 2);
         rh.ray.dir_z[i] = R(2, 0) * xn + R(2, 1) * yn + R(2, 2);
-        rh.ray.time[i] = 0.0f;
         rh.ray.tfar[i] = std::numeric_limits<float>::infinity();
-        rh.ray.mask[i] = ~0u;
-        rh.ray.id[i] = static_cast<unsigned>(i);
-        rh.ray.flags[i] = 0;
         rh.hit.geomID[i] = RTC_INVALID_GEOMETRY_ID;
-        rh.hit.instID[0][i] = RTC_INVALID_GEOMETRY_ID;
         d2[i] = xn * xn + yn * yn + 1.0f;
       }
       intersect(valid, scene_, &ctx, &rh);

@@ -19,7 +19,8 @@ struct DepthNoiseSpec {
   double hole_fraction = 0.01;
   int hole_radius_px = 6;
   // Pixels whose depth differs from a 4-neighbour by more than this fraction of their depth
-  // (depth discontinuities) become invalid, as in real stereo/ToF sensors.
+  // (depth discontinuities) become invalid, as in real stereo/ToF sensors. The same test removes
+  // surfaces seen at grazing angles, where neighbouring depths drift apart. 0 disables it.
   double edge_dropout_ratio = 0.0;
 };
 
@@ -28,8 +29,10 @@ struct ExposureSpec {
   double pixel_noise_sigma = 2.0;  // additive Gaussian noise in 8-bit levels
 };
 
-// depth_m: CV_32FC1 in/out; invalid pixels (0) stay 0. Allocation-free after the first call with
-// a given size (scratch buffers are thread_local and reused).
+// depth_m: CV_32FC1 in/out; invalid pixels (0) stay 0. Order: discontinuities are found on the
+// input, then noise, hole blobs and the dropout are applied. The noise at pixel i depends only on
+// (seed, i). Allocation-free after the first call with a given size (scratch buffers are
+// thread_local and reused).
 void apply_depth_noise(const DepthNoiseSpec& spec, uint64_t seed, cv::Mat* depth_m);
 // bgr: CV_8UC3 in/out, saturating.
 void apply_exposure(const ExposureSpec& spec, uint64_t seed, cv::Mat* bgr);

@@ -38,7 +38,9 @@ class Renderer {
   virtual ~Renderer() = default;
 
   // Renders the view of a camera at T_scene_cam (OpenCV camera axes: x right, y down, z forward).
-  // bgr: CV_8UC3; depth_m: CV_32FC1 (0 = no surface within [min, max] range). Single-threaded.
+  // bgr: CV_8UC3; depth_m: CV_32FC1 (0 = no surface within [min, max] range). Each call runs on
+  // the calling thread; concurrent calls on one renderer are safe (the Embree scene is committed
+  // and read-only, scratch is thread-local), which hwr-sim --threads relies on.
   // Either output may be null. Lens distortion in `intrinsics` is ignored (rectified images).
   virtual void render(const Eigen::Isometry3d& T_scene_cam, const hal::PinholeIntrinsics& intrinsics,
                       const RenderOptions& options, cv::Mat* bgr, cv::Mat* depth_m) const = 0;
