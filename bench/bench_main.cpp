@@ -24,7 +24,8 @@ int run_micro(int argc, char** argv) {
 }
 }  // namespace
 
-HWR_BENCH_COMMAND(micro, "micro", "Google Benchmark micro-benchmarks (accepts --benchmark_* flags)", run_micro);
+HWR_BENCH_COMMAND(micro, "micro", "Google Benchmark micro-benchmarks (accepts --benchmark_* flags)",
+                  run_micro);
 
 }  // namespace hwr::bench
 

@@ -27,10 +27,10 @@ using hwr::core::kNsPerS;
 
 // Scheduler task table: rate, time budget, priority (0 = highest).
 constexpr hwr::core::TaskSpec kTasks[] = {
-    {"hal", 200.0, 1'000'000, 0},       // poll the source into the rings
-    {"inertial", 200.0, 500'000, 1},    // IMU, magnetometer, GNSS rings
-    {"camera", 30.0, 25'000'000, 2},    // frames
-    {"telemetry", 1.0, 1'000'000, 9},   // status line
+    {"hal", 200.0, 1'000'000, 0},      // poll the source into the rings
+    {"inertial", 200.0, 500'000, 1},   // IMU, magnetometer, GNSS rings
+    {"camera", 30.0, 25'000'000, 2},   // frames
+    {"telemetry", 1.0, 1'000'000, 9},  // status line
 };
 enum TaskIndex : size_t { kHal = 0, kInertial, kCamera, kTelemetry };
 
@@ -42,9 +42,10 @@ struct Args {
 };
 
 void usage() {
-  std::fprintf(stderr,
-               "usage: hwr-robot --source KIND:PATH [--duration S] [--realtime] [--quiet]\n"
-               "  KIND: sim (a folder written by hwr-sim), tum (TUM RGB-D folder), euroc (EuRoC folder or mav0)\n");
+  std::fprintf(
+      stderr,
+      "usage: hwr-robot --source KIND:PATH [--duration S] [--realtime] [--quiet]\n"
+      "  KIND: sim (a folder written by hwr-sim), tum (TUM RGB-D folder), euroc (EuRoC folder or mav0)\n");
 }
 
 // Replay paced at sensor rate: the timeline is the source's time, advancing with CLOCK_MONOTONIC.
@@ -107,7 +108,8 @@ void telemetry_task(void* ctx, int64_t now_ns) {
   r->scheduler->snapshot(t, 4);
   uint64_t overruns = 0;
   for (const auto& x : t) overruns += x.overruns;
-  std::fprintf(stderr, "\rhwr-robot t=%8.2fs frames=%" PRIu64 " imu=%" PRIu64 " mag=%" PRIu64 " gnss=%" PRIu64
+  std::fprintf(stderr,
+               "\rhwr-robot t=%8.2fs frames=%" PRIu64 " imu=%" PRIu64 " mag=%" PRIu64 " gnss=%" PRIu64
                " dropped=%" PRIu64 " overruns=%" PRIu64 "   ",
                hwr::core::ns_to_s(now_ns - r->scheduler->start_ns()), c.frames, c.imu, c.mag, c.gnss,
                c.frames_dropped + r->streams->imu.dropped(), overruns);
@@ -169,8 +171,8 @@ int run(const Args& args) {
   sched.start(t0);
 
   std::fprintf(stderr, "hwr-robot: source %s: %.1f s, %s%s%s%s\n", info.name.c_str(),
-               hwr::core::ns_to_s(info.last_t_ns - info.first_t_ns), "camera",
-               info.has_imu ? " + imu" : "", info.has_mag ? " + magnetometer" : "", info.has_gnss ? " + gnss" : "");
+               hwr::core::ns_to_s(info.last_t_ns - info.first_t_ns), "camera", info.has_imu ? " + imu" : "",
+               info.has_mag ? " + magnetometer" : "", info.has_gnss ? " + gnss" : "");
   const int64_t end = args.duration_s > 0 ? t0 + hwr::core::s_to_ns(args.duration_s)
                                           : info.last_t_ns + hwr::core::kNsPerS / 10;
   const int64_t wall0 = exec_clock.now_ns();
@@ -187,8 +189,8 @@ int run(const Args& args) {
   const hwr::hal::SourceCounters c = source.value()->counters();
   const auto& ih = robot.imu.health();
   const auto& ch = robot.camera.health();
-  std::printf("scheduler telemetry (simulated %.2f s in %.2f s wall):\n%s", hwr::core::ns_to_s(sched.next_release_ns(0) - t0),
-              wall_s, table);
+  std::printf("scheduler telemetry (simulated %.2f s in %.2f s wall):\n%s",
+              hwr::core::ns_to_s(sched.next_release_ns(0) - t0), wall_s, table);
   std::printf("camera: frames=%" PRIu64 " dropped=%" PRIu64 " unreadable=%" PRIu64 " gaps=%" PRIu64
               " low_depth=%" PRIu64 " max_interval_ms=%.1f\n",
               ch.samples, c.frames_dropped, c.frame_errors, ch.gaps, robot.camera.frames_low_depth(),
@@ -196,8 +198,8 @@ int run(const Args& args) {
   std::printf("imu: samples=%" PRIu64 " dropped=%" PRIu64 " gaps=%" PRIu64 " non_finite=%" PRIu64
               " non_increasing=%" PRIu64 "\n",
               ih.samples, streams.imu.dropped(), ih.gaps, ih.non_finite, ih.non_increasing_t);
-  std::printf("magnetometer: samples=%" PRIu64 "  gnss: fixes=%" PRIu64 " with_3d_fix=%" PRIu64 "\n", robot.mag,
-              robot.gnss, robot.gnss_3d);
+  std::printf("magnetometer: samples=%" PRIu64 "  gnss: fixes=%" PRIu64 " with_3d_fix=%" PRIu64 "\n",
+              robot.mag, robot.gnss, robot.gnss_3d);
   std::printf("pose estimation: not in this build yet (docs/architecture.md)\n");
   if (!robot.error.ok()) {
     std::fprintf(stderr, "hwr-robot: %s\n", robot.error.to_string().c_str());

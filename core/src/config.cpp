@@ -19,9 +19,9 @@ struct Node {
   std::string scalar;
   std::vector<Node> items;                            // kSequence
   std::vector<std::pair<std::string, Node>> entries;  // kMap, file order
-  std::vector<int> key_lines;                         // kMap: line of each key (a nested value starts below it)
-  mutable std::vector<bool> used;                     // kMap: entry read
-  mutable bool entered = false;                       // kMap: a ConfigMap was made for it
+  std::vector<int> key_lines;      // kMap: line of each key (a nested value starts below it)
+  mutable std::vector<bool> used;  // kMap: entry read
+  mutable bool entered = false;    // kMap: a ConfigMap was made for it
 };
 
 struct Document {
@@ -52,12 +52,14 @@ Status convert(const YAML::Node& in, Node* out, const std::string& source) {
       out->kind = Node::Kind::kMap;
       for (const auto& kv : in) {
         if (!kv.first.IsScalar()) {
-          return ParseError(source + ":" + std::to_string(kv.first.Mark().line + 1) + ": mapping keys must be plain words");
+          return ParseError(source + ":" + std::to_string(kv.first.Mark().line + 1) +
+                            ": mapping keys must be plain words");
         }
         const std::string key = kv.first.Scalar();
         for (const auto& e : out->entries) {
           if (e.first == key) {
-            return ParseError(source + ":" + std::to_string(kv.first.Mark().line + 1) + ": duplicate key '" + key + "'");
+            return ParseError(source + ":" + std::to_string(kv.first.Mark().line + 1) + ": duplicate key '" +
+                              key + "'");
           }
         }
         out->entries.emplace_back(key, Node{});
@@ -70,7 +72,8 @@ Status convert(const YAML::Node& in, Node* out, const std::string& source) {
   return Internal("unknown YAML node type");
 }
 
-void collect_unknown(const Node& n, const std::string& path, const std::string& source, std::vector<std::string>* out) {
+void collect_unknown(const Node& n, const std::string& path, const std::string& source,
+                     std::vector<std::string>* out) {
   if (n.kind == Node::Kind::kMap) {
     if (!n.entered) return;  // never read: its parent key was reported if unused
     for (size_t i = 0; i < n.entries.size(); ++i) {
@@ -97,9 +100,18 @@ bool parse_double(const std::string& s, double* out) {
   // ERANGE on underflow still yields the nearest (subnormal or zero) value; only overflow is an error.
   if (e == b || *e != '\0' || (errno == ERANGE && std::fabs(v) == HUGE_VAL)) {
     // YAML spellings of special values.
-    if (s == ".nan" || s == ".NaN" || s == ".NAN") { *out = std::nan(""); return true; }
-    if (s == ".inf" || s == ".Inf" || s == "+.inf") { *out = HUGE_VAL; return true; }
-    if (s == "-.inf" || s == "-.Inf") { *out = -HUGE_VAL; return true; }
+    if (s == ".nan" || s == ".NaN" || s == ".NAN") {
+      *out = std::nan("");
+      return true;
+    }
+    if (s == ".inf" || s == ".Inf" || s == "+.inf") {
+      *out = HUGE_VAL;
+      return true;
+    }
+    if (s == "-.inf" || s == "-.Inf") {
+      *out = -HUGE_VAL;
+      return true;
+    }
     return false;
   }
   *out = v;
@@ -141,8 +153,14 @@ bool parse_int64(const std::string& s, int64_t* out) {
 }
 
 bool parse_bool(const std::string& s, bool* out) {
-  if (s == "true" || s == "True" || s == "TRUE" || s == "yes" || s == "on") { *out = true; return true; }
-  if (s == "false" || s == "False" || s == "FALSE" || s == "no" || s == "off") { *out = false; return true; }
+  if (s == "true" || s == "True" || s == "TRUE" || s == "yes" || s == "on") {
+    *out = true;
+    return true;
+  }
+  if (s == "false" || s == "False" || s == "FALSE" || s == "no" || s == "off") {
+    *out = false;
+    return true;
+  }
   return false;
 }
 
@@ -166,7 +184,8 @@ Expected<ConfigDocument> ConfigDocument::parse(const std::string& yaml_text, con
   if (doc->root.kind == Node::Kind::kNull) {
     doc->root.kind = Node::Kind::kMap;  // empty file: empty mapping
   } else if (doc->root.kind != Node::Kind::kMap) {
-    return ParseError(source_name + ":" + std::to_string(doc->root.line) + ": the top level must be a mapping of keys");
+    return ParseError(source_name + ":" + std::to_string(doc->root.line) +
+                      ": the top level must be a mapping of keys");
   }
   ConfigDocument out;
   out.doc_ = std::move(doc);
@@ -249,10 +268,14 @@ void ConfigMap::record_missing(const char* key) { record_error(key, "required bu
 namespace {
 std::string describe(const Node& n) {
   switch (n.kind) {
-    case Node::Kind::kNull: return "nothing";
-    case Node::Kind::kScalar: return "'" + n.scalar + "'";
-    case Node::Kind::kSequence: return "a list";
-    case Node::Kind::kMap: return "a mapping";
+    case Node::Kind::kNull:
+      return "nothing";
+    case Node::Kind::kScalar:
+      return "'" + n.scalar + "'";
+    case Node::Kind::kSequence:
+      return "a list";
+    case Node::Kind::kMap:
+      return "a mapping";
   }
   return "?";
 }
@@ -350,7 +373,8 @@ bool ConfigMap::read_numbers(const char* key, double* out, size_t n_expected, bo
     return false;
   }
   if (exact_count && n->items.size() != n_expected) {
-    record_error(key, "expected " + std::to_string(n_expected) + " numbers, got " + std::to_string(n->items.size()));
+    record_error(
+        key, "expected " + std::to_string(n_expected) + " numbers, got " + std::to_string(n->items.size()));
     return false;
   }
   std::vector<double> tmp(n->items.size());

@@ -4,17 +4,28 @@ namespace hwr::core {
 
 const char* to_string(ErrorCode code) {
   switch (code) {
-    case ErrorCode::kOk: return "ok";
-    case ErrorCode::kInvalidArgument: return "invalid argument";
-    case ErrorCode::kNotFound: return "not found";
-    case ErrorCode::kIoError: return "I/O error";
-    case ErrorCode::kParseError: return "parse error";
-    case ErrorCode::kCorruptData: return "corrupt data";
-    case ErrorCode::kOutOfRange: return "out of range";
-    case ErrorCode::kUnavailable: return "unavailable";
-    case ErrorCode::kTimeout: return "timeout";
-    case ErrorCode::kEndOfStream: return "end of stream";
-    case ErrorCode::kInternal: return "internal error";
+    case ErrorCode::kOk:
+      return "ok";
+    case ErrorCode::kInvalidArgument:
+      return "invalid argument";
+    case ErrorCode::kNotFound:
+      return "not found";
+    case ErrorCode::kIoError:
+      return "I/O error";
+    case ErrorCode::kParseError:
+      return "parse error";
+    case ErrorCode::kCorruptData:
+      return "corrupt data";
+    case ErrorCode::kOutOfRange:
+      return "out of range";
+    case ErrorCode::kUnavailable:
+      return "unavailable";
+    case ErrorCode::kTimeout:
+      return "timeout";
+    case ErrorCode::kEndOfStream:
+      return "end of stream";
+    case ErrorCode::kInternal:
+      return "internal error";
   }
   return "unknown error";
 }

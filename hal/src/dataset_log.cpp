@@ -59,12 +59,14 @@ core::Expected<ReplayLog> open_euroc(std::string dir) {
     rig.right = shared->cam1().intrinsics;
     rig.T_left_right = shared->T_cam0_cam1();
     auto stereo = StereoDepth::create(rig);
-    if (!stereo.ok()) return core::Status(stereo.status().code(), dir + ": stereo rig: " + stereo.status().message());
+    if (!stereo.ok())
+      return core::Status(stereo.status().code(), dir + ": stereo rig: " + stereo.status().message());
     auto depth = std::make_shared<StereoDepth>(std::move(stereo.value()));
     log.info.stereo = true;
     log.info.intrinsics = depth->rectified_intrinsics();
     // The frames are in the rectified left camera: T_imu_rect = T_imu_body · T_body_cam0 · T_cam0_rect.
-    log.info.T_imu_cam = shared->imu_calib().T_body_imu.inverse() * shared->cam0().T_body_cam * depth->T_cam0_rect();
+    log.info.T_imu_cam =
+        shared->imu_calib().T_body_imu.inverse() * shared->cam0().T_body_cam * depth->T_cam0_rect();
     for (size_t i = 0; i < shared->size(); ++i) log.frame_t_ns.push_back(shared->frame_time_ns(i));
     log.info.first_t_ns = std::min(log.info.first_t_ns == 0 ? log.frame_t_ns.front() : log.info.first_t_ns,
                                    log.frame_t_ns.front());

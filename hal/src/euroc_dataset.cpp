@@ -230,7 +230,8 @@ Expected<EurocDataset> EurocDataset::open(const std::string& mav0_dir, const Eur
     for (int c = 0; c < 2; ++c) {
       for (const Frame& f : ds.cam_[c].frames) t[c].push_back(f.t_ns);
     }
-    for (const core::IndexPair& p : core::associate_nearest(t[0], t[1], core::s_to_ns(options.max_stereo_dt_s))) {
+    for (const core::IndexPair& p :
+         core::associate_nearest(t[0], t[1], core::s_to_ns(options.max_stereo_dt_s))) {
       ds.pairs_.push_back({p.a, p.b});
     }
     if (ds.pairs_.empty()) {

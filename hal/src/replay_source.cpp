@@ -23,11 +23,13 @@ bool sorted_by_time(const std::vector<T>& v) {
 core::Expected<std::unique_ptr<ReplaySource>> ReplaySource::create(ReplayLog log, SensorStreams* streams) {
   const std::string& name = log.info.name;
   if (!sorted_by_time(log.imu)) return core::InvalidArgument(name + ": IMU samples are not in time order");
-  if (!sorted_by_time(log.mag)) return core::InvalidArgument(name + ": magnetometer samples are not in time order");
+  if (!sorted_by_time(log.mag))
+    return core::InvalidArgument(name + ": magnetometer samples are not in time order");
   if (!sorted_by_time(log.gnss)) return core::InvalidArgument(name + ": GNSS fixes are not in time order");
   for (size_t i = 1; i < log.frame_t_ns.size(); ++i) {
     if (log.frame_t_ns[i] <= log.frame_t_ns[i - 1]) {
-      return core::InvalidArgument(name + ": frame timestamps are not in time order at frame " + std::to_string(i));
+      return core::InvalidArgument(name + ": frame timestamps are not in time order at frame " +
+                                   std::to_string(i));
     }
   }
   if (!log.frame_t_ns.empty() && !log.load_frame) {

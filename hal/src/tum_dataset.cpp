@@ -118,7 +118,8 @@ Expected<TumDataset> TumDataset::open(const std::string& dir, const TumDatasetOp
   std::vector<int64_t> t_depth(ds.depth_.size());
   for (size_t i = 0; i < ds.rgb_.size(); ++i) t_rgb[i] = ds.rgb_[i].t_ns;
   for (size_t i = 0; i < ds.depth_.size(); ++i) t_depth[i] = ds.depth_[i].t_ns;
-  for (const core::IndexPair& p : core::associate_nearest(t_rgb, t_depth, core::s_to_ns(options.max_association_dt_s))) {
+  for (const core::IndexPair& p :
+       core::associate_nearest(t_rgb, t_depth, core::s_to_ns(options.max_association_dt_s))) {
     ds.pairs_.push_back({p.a, p.b});
   }
   if (ds.pairs_.empty()) {

@@ -105,7 +105,8 @@ TEST(ReplaySource, GivenAPipelineThatNeverConsumesWhenPolledThenFramesAreDropped
   SensorStreams streams(small_streams());
   auto src = ReplaySource::create(synthetic_log(0), &streams);
   ASSERT_TRUE(src.ok());
-  for (int64_t t = 1'000 * kMs; t <= 3'000 * kMs; t += 5 * kMs) ASSERT_TRUE(src.value()->poll(t, &streams).ok());
+  for (int64_t t = 1'000 * kMs; t <= 3'000 * kMs; t += 5 * kMs)
+    ASSERT_TRUE(src.value()->poll(t, &streams).ok());
   // The ring holds 2 frames; the prefetcher holds the third pool frame, so it starves and the
   // replay goes on without waiting forever.
   EXPECT_EQ(streams.frames.size(), 2u);

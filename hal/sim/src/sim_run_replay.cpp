@@ -27,7 +27,8 @@ void widen_span(const std::vector<T>& v, hal::SourceInfo* info) {
 
 core::Expected<SimRunLog> open_sim_run_log(const std::string& dir) {
   if (!exists(dir + "/calibration.yaml")) {
-    return core::NotFound(dir + ": not a simulator run (no calibration.yaml); write one with hwr-sim --out " + dir);
+    return core::NotFound(dir + ": not a simulator run (no calibration.yaml); write one with hwr-sim --out " +
+                          dir);
   }
   auto calib = load_sim_calibration(dir + "/calibration.yaml");
   if (!calib.ok()) return calib.status();

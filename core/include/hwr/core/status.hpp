@@ -20,8 +20,8 @@ enum class ErrorCode {
   kOutOfRange,       // value outside its documented range
   kUnavailable,      // device unplugged / not ready; may succeed later
   kTimeout,
-  kEndOfStream,      // a replay or log has no more data
-  kInternal,         // a bug; should not happen
+  kEndOfStream,  // a replay or log has no more data
+  kInternal,     // a bug; should not happen
 };
 
 const char* to_string(ErrorCode code);
@@ -58,7 +58,7 @@ inline Status Internal(std::string m) { return {ErrorCode::kInternal, std::move(
 template <class T>
 class [[nodiscard]] Expected {
  public:
-  Expected(T value) : v_(std::move(value)) {}  // NOLINT(google-explicit-constructor)
+  Expected(T value) : v_(std::move(value)) {}        // NOLINT(google-explicit-constructor)
   Expected(Status status) : v_(std::move(status)) {  // NOLINT(google-explicit-constructor)
     assert(!std::get<Status>(v_).ok() && "Expected<T> built from an OK Status has no value");
   }
@@ -66,9 +66,18 @@ class [[nodiscard]] Expected {
   bool ok() const { return std::holds_alternative<T>(v_); }
   explicit operator bool() const { return ok(); }
 
-  T& value() & { assert(ok()); return std::get<T>(v_); }
-  const T& value() const& { assert(ok()); return std::get<T>(v_); }
-  T&& value() && { assert(ok()); return std::get<T>(std::move(v_)); }
+  T& value() & {
+    assert(ok());
+    return std::get<T>(v_);
+  }
+  const T& value() const& {
+    assert(ok());
+    return std::get<T>(v_);
+  }
+  T&& value() && {
+    assert(ok());
+    return std::get<T>(std::move(v_));
+  }
   T& operator*() & { return value(); }
   const T& operator*() const& { return value(); }
   T* operator->() { return &value(); }
@@ -84,8 +93,8 @@ class [[nodiscard]] Expected {
 }  // namespace hwr::core
 
 // Propagate a non-OK Status from an expression returning Status.
-#define HWR_RETURN_IF_ERROR(expr)                 \
-  do {                                            \
-    ::hwr::core::Status _hwr_st = (expr);         \
-    if (!_hwr_st.ok()) return _hwr_st;            \
+#define HWR_RETURN_IF_ERROR(expr)         \
+  do {                                    \
+    ::hwr::core::Status _hwr_st = (expr); \
+    if (!_hwr_st.ok()) return _hwr_st;    \
   } while (0)

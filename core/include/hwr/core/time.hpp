@@ -13,9 +13,7 @@ constexpr int64_t kNsPerS = 1'000'000'000;
 
 constexpr double ns_to_s(int64_t t_ns) { return static_cast<double>(t_ns) * 1e-9; }
 // Rounds to the nearest nanosecond.
-constexpr int64_t s_to_ns(double t_s) {
-  return static_cast<int64_t>(t_s * 1e9 + (t_s >= 0 ? 0.5 : -0.5));
-}
+constexpr int64_t s_to_ns(double t_s) { return static_cast<int64_t>(t_s * 1e9 + (t_s >= 0 ? 0.5 : -0.5)); }
 
 class Clock {
  public:

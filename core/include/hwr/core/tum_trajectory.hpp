@@ -22,7 +22,8 @@ struct StampedPose {
 // Errors name the file and line, e.g. "groundtruth.txt:17: expected 8 numbers, got 5".
 Expected<std::vector<StampedPose>> read_tum_trajectory(const std::string& path);
 // Same, from text already in memory (source_name used in messages).
-Expected<std::vector<StampedPose>> parse_tum_trajectory(const std::string& text, const std::string& source_name);
+Expected<std::vector<StampedPose>> parse_tum_trajectory(const std::string& text,
+                                                        const std::string& source_name);
 
 // Writes with 9 fractional digits of seconds (nanoseconds survive a round trip) and a header.
 Status write_tum_trajectory(const std::string& path, const std::vector<StampedPose>& poses,

@@ -13,11 +13,11 @@
 namespace hwr::hal {
 
 struct RgbdFrame {
-  int64_t t_ns = 0;     // exposure time on the sensor clock
-  uint64_t seq = 0;     // frame counter of the source, gaps mean dropped frames
-  cv::Mat bgr;          // CV_8UC3
-  cv::Mat depth_m;      // CV_32FC1, 0 = invalid
-  cv::Mat right_gray;   // CV_8UC1 rectified right image for stereo sources; empty otherwise
+  int64_t t_ns = 0;    // exposure time on the sensor clock
+  uint64_t seq = 0;    // frame counter of the source, gaps mean dropped frames
+  cv::Mat bgr;         // CV_8UC3
+  cv::Mat depth_m;     // CV_32FC1, 0 = invalid
+  cv::Mat right_gray;  // CV_8UC1 rectified right image for stereo sources; empty otherwise
   PinholeIntrinsics intrinsics;
   uint32_t invalid_depth_px = 0;
 };

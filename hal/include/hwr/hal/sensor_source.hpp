@@ -20,7 +20,7 @@ struct SourceInfo {
   std::string name;  // e.g. "tum:/data/rgbd_dataset_freiburg3_teddy"
   PinholeIntrinsics intrinsics;
   Eigen::Isometry3d T_imu_cam = Eigen::Isometry3d::Identity();
-  bool has_imu = false;   // gyro + accelerometer (TUM has accelerometer only: has_imu false)
+  bool has_imu = false;  // gyro + accelerometer (TUM has accelerometer only: has_imu false)
   bool has_mag = false;
   bool has_gnss = false;
   bool stereo = false;
@@ -32,7 +32,7 @@ struct SourceInfo {
 
 // Counters a source keeps for telemetry.
 struct SourceCounters {
-  uint64_t frames = 0;          // delivered into streams.frames
+  uint64_t frames = 0;  // delivered into streams.frames
   uint64_t imu = 0;
   uint64_t mag = 0;
   uint64_t gnss = 0;

@@ -22,14 +22,14 @@
 namespace hwr::hal {
 
 struct SensorStreamsConfig {
-  size_t imu_capacity = 512;   // 2.5 s at 200 Hz
+  size_t imu_capacity = 512;  // 2.5 s at 200 Hz
   size_t mag_capacity = 128;
   size_t gnss_capacity = 32;
   size_t frame_capacity = 4;   // frames waiting for the pipeline
   size_t frame_pool_size = 8;  // frames in flight: waiting + being processed + being loaded
   int width = 640;             // frame buffers are preallocated at this size
   int height = 480;
-  bool stereo = false;         // also preallocate right_gray
+  bool stereo = false;  // also preallocate right_gray
 };
 
 class SensorStreams {

@@ -67,11 +67,11 @@ struct WeldJointSpec {
   enum class Type : uint8_t { kFillet, kButt };
   std::string name;
   Type type = Type::kFillet;
-  double length_m = 0.6;        // along the seam
-  double base_width_m = 0.3;    // fillet: base plate width; butt: width of each plate
-  double web_width_m = 0.2;     // fillet: web plate height; unused for butt
-  double thickness_m = 0.01;    // plate thickness
-  double gap_m = 0.002;         // butt joint root gap
+  double length_m = 0.6;      // along the seam
+  double base_width_m = 0.3;  // fillet: base plate width; butt: width of each plate
+  double web_width_m = 0.2;   // fillet: web plate height; unused for butt
+  double thickness_m = 0.01;  // plate thickness
+  double gap_m = 0.002;       // butt joint root gap
   Eigen::Isometry3d T_scene_joint = Eigen::Isometry3d::Identity();
 };
 
@@ -95,9 +95,9 @@ struct SceneSpec {
 
 // Exact ground truth of the welding work pieces, in the scene frame.
 struct PlateTruth {
-  std::string name;                       // "<joint>/base", "<joint>/web", "<joint>/left", ...
-  Eigen::Vector3d size_m;                 // length, width, thickness
-  Eigen::Isometry3d T_scene_plate;        // plate frame: centred box, x length, y width, z thickness
+  std::string name;                 // "<joint>/base", "<joint>/web", "<joint>/left", ...
+  Eigen::Vector3d size_m;           // length, width, thickness
+  Eigen::Isometry3d T_scene_plate;  // plate frame: centred box, x length, y width, z thickness
   // Box corners in the scene frame. Corner i sits at local (sx*L/2, sy*W/2, sz*T/2) with
   // sx = bit 2 of i, sy = bit 1, sz = bit 0 (bit set: +, clear: -).
   std::array<Eigen::Vector3d, 8> corners_scene;
