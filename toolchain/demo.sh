@@ -1,13 +1,19 @@
 #!/usr/bin/env bash
 # Installs what is missing, builds, and runs the pipeline as far as it exists:
 #   simulator (hwr-sim) → robot process (hwr-robot: HAL replay → fixed-rate scheduler)
-# Outputs go to out/demo/ (override with HWR_DEMO_OUT=DIR). Pass --duration S to shorten the
-# simulated run (default: the whole ~50 m lab walk).
+# Outputs go to out/demo/ (override with HWR_DEMO_OUT=DIR). By default the first 60 s of the lab
+# walk are simulated (~2 GB of images, a few minutes on 2 cores); --duration S picks another
+# length, --full the whole ~48 m, 164 s walk (~5 GB).
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
 out=$(realpath -m "${HWR_DEMO_OUT:-out/demo}")
-duration=()
-if [[ "${1:-}" == "--duration" && -n "${2:-}" ]]; then duration=(--duration "$2"); fi
+duration=(--duration 60)
+case "${1:-}" in
+  --duration) [[ -n "${2:-}" ]] || { echo "demo: --duration needs seconds" >&2; exit 2; }; duration=(--duration "$2") ;;
+  --full) duration=() ;;
+  "") ;;
+  *) echo "demo: unknown option '$1' (use --duration S or --full)" >&2; exit 2 ;;
+esac
 
 toolchain/install-deps.sh
 cmake --preset host-release
