@@ -1,10 +1,8 @@
 // hwr-eval, run as a program on trajectory files written here.
 
-#include <sys/wait.h>
 #include <unistd.h>
 
 #include <bitset>
-#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -14,31 +12,18 @@
 
 #include <gtest/gtest.h>
 
+#include "cli_run.hpp"
 #include "hwr/core/tum_trajectory.hpp"
 
 namespace {
 
 namespace fs = std::filesystem;
 using hwr::core::StampedPose;
+using hwr::testing::CliRun;
 
 const std::string kEval = HWR_BINARY_DIR "/apps/hwr-eval/hwr-eval";
 
-struct CliRun {
-  int exit_code = -1;
-  std::string out;  // stdout and stderr together
-};
-
-CliRun run_eval(const std::string& args) {
-  CliRun r;
-  FILE* p = ::popen((kEval + " " + args + " 2>&1").c_str(), "r");
-  if (p == nullptr) return r;
-  char buf[4096];
-  size_t n = 0;
-  while ((n = std::fread(buf, 1, sizeof(buf), p)) > 0) r.out.append(buf, n);
-  const int status = ::pclose(p);
-  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
-}
+CliRun run_eval(const std::string& args) { return hwr::testing::run_cli(kEval, args); }
 
 std::map<std::string, std::string> key_values(const std::string& out) {
   std::map<std::string, std::string> kv;

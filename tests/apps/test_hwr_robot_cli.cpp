@@ -1,35 +1,21 @@
 // hwr-robot, run as a program: a real dataset replays through the scheduler with every frame
 // delivered; bad sources give one clear line and exit code 1.
 
-#include <sys/wait.h>
-
-#include <cstdio>
 #include <filesystem>
 #include <string>
 
 #include <gtest/gtest.h>
+
+#include "cli_run.hpp"
 
 namespace {
 
 const std::string kRobot = HWR_BINARY_DIR "/apps/hwr-robot/hwr-robot";
 const std::string kTeddy = HWR_DATA_DIR "/tum-fr3-teddy-200/rgbd_dataset_freiburg3_teddy";
 
-struct CliRun {
-  int exit_code = -1;
-  std::string out;
-};
+using hwr::testing::CliRun;
 
-CliRun run_robot(const std::string& args) {
-  CliRun r;
-  FILE* p = ::popen((kRobot + " " + args + " 2>&1").c_str(), "r");
-  if (p == nullptr) return r;
-  char buf[4096];
-  size_t n = 0;
-  while ((n = std::fread(buf, 1, sizeof(buf), p)) > 0) r.out.append(buf, n);
-  const int status = ::pclose(p);
-  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
-}
+CliRun run_robot(const std::string& args) { return hwr::testing::run_cli(kRobot, args); }
 
 TEST(HwrRobotCli, GivenTheTumTeddySequenceWhenReplayedThenEveryAssociatedFrameReachesThePipeline) {
   ASSERT_TRUE(std::filesystem::exists(kRobot)) << kRobot << " not built";

@@ -9,32 +9,16 @@
 #include <opencv2/core.hpp>
 
 #include "hwr/sim/renderer.hpp"
+#include "sim_test_util.hpp"
 
 namespace hwr::sim {
 namespace {
 
-hal::PinholeIntrinsics vga() {
-  hal::PinholeIntrinsics K;
-  K.width = 640;
-  K.height = 480;
-  K.fx = 525.0;
-  K.fy = 520.0;
-  K.cx = 319.5;
-  K.cy = 241.0;
-  return K;
-}
+using testing::look_at;
+using testing::pose;
 
-// Camera at `eye` looking at `target`, OpenCV axes (x right, y down, z forward), world z up.
-Eigen::Isometry3d look_at(const Eigen::Vector3d& eye, const Eigen::Vector3d& target) {
-  const Eigen::Vector3d z = (target - eye).normalized();
-  const Eigen::Vector3d x = z.cross(Eigen::Vector3d::UnitZ()).normalized();
-  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  T.linear().col(0) = x;
-  T.linear().col(1) = z.cross(x);
-  T.linear().col(2) = z;
-  T.translation() = eye;
-  return T;
-}
+// fx != fy and cy off-centre, so that swapped axes or a centred principal point would show.
+hal::PinholeIntrinsics vga() { return testing::vga(525.0, 520.0, 241.0); }
 
 // Scene-frame direction of pixel (u, v), scaled so that its camera z component is 1.
 Eigen::Vector3d pixel_ray(const Eigen::Isometry3d& T_scene_cam, const hal::PinholeIntrinsics& K, int u,
@@ -164,34 +148,6 @@ TEST(RenderDepth, RangeLimitsBlankDepthButKeepColour) {
   EXPECT_GT(inside, 1000);
 }
 
-// Ray/box entry distance (slab method in the box frame); +inf on a miss.
-double ray_box(const BoxSpec& box, const Eigen::Vector3d& o_scene, const Eigen::Vector3d& d_scene) {
-  const Eigen::Isometry3d T_box_scene = box.T_scene_box.inverse();
-  const Eigen::Vector3d o = T_box_scene * o_scene;
-  const Eigen::Vector3d d = T_box_scene.linear() * d_scene.normalized();
-  double t0 = -std::numeric_limits<double>::infinity(), t1 = std::numeric_limits<double>::infinity();
-  for (int k = 0; k < 3; ++k) {
-    const double h = 0.5 * box.size_m[k];
-    if (std::abs(d[k]) < 1e-15) {
-      if (std::abs(o[k]) > h) return std::numeric_limits<double>::infinity();
-      continue;
-    }
-    double a = (-h - o[k]) / d[k], b = (h - o[k]) / d[k];
-    if (a > b) std::swap(a, b);
-    t0 = std::max(t0, a);
-    t1 = std::min(t1, b);
-  }
-  return (t0 <= t1 && t0 > 0) ? t0 : std::numeric_limits<double>::infinity();
-}
-
-Eigen::Isometry3d pose(const Eigen::Vector3d& t, const Eigen::Vector3d& rotation_vector) {
-  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  if (rotation_vector.norm() > 0)
-    T.linear() = Eigen::AngleAxisd(rotation_vector.norm(), rotation_vector.normalized()).toRotationMatrix();
-  T.translation() = t;
-  return T;
-}
-
 TEST(CastRay, BoxesMatchSlabIntersection) {
   SceneSpec spec = ground_only();
   // Far apart and above the ground so that rays from near one box see only that box.
@@ -216,7 +172,8 @@ TEST(CastRay, BoxesMatchSlabIntersection) {
                                                                     0.45 * uni(rng) * box.size_m.y(),
                                                                     0.45 * uni(rng) * box.size_m.z());
       const Eigen::Vector3d origin = aim - 2.5 * dir;
-      const double expected = ray_box(box, origin, aim - origin);
+      const double expected = testing::ray_box_slab(box.size_m, box.T_scene_box, origin, aim - origin,
+                                                    /*exit_if_inside=*/false);
       ASSERT_TRUE(std::isfinite(expected));
       const Eigen::Vector3d unnormalised = (aim - origin) * (0.2 + 3.0 * std::abs(uni(rng)));
       EXPECT_NEAR(renderer->cast_ray(origin, unnormalised), expected, 1e-5) << box.name;

@@ -10,30 +10,13 @@
 #include <opencv2/imgproc.hpp>
 
 #include "hwr/sim/renderer.hpp"
+#include "sim_test_util.hpp"
 
 namespace hwr::sim {
 namespace {
 
-hal::PinholeIntrinsics vga() {
-  hal::PinholeIntrinsics K;
-  K.width = 640;
-  K.height = 480;
-  K.fx = K.fy = 525.0;
-  K.cx = 319.5;
-  K.cy = 239.5;
-  return K;
-}
-
-Eigen::Isometry3d look_at(const Eigen::Vector3d& eye, const Eigen::Vector3d& target) {
-  const Eigen::Vector3d z = (target - eye).normalized();
-  const Eigen::Vector3d x = z.cross(Eigen::Vector3d::UnitZ()).normalized();
-  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  T.linear().col(0) = x;
-  T.linear().col(1) = z.cross(x);
-  T.linear().col(2) = z;
-  T.translation() = eye;
-  return T;
-}
+using testing::look_at;
+using testing::vga;
 
 struct OrbCoverage {
   int keypoints = 0;

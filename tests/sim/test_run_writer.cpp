@@ -2,6 +2,8 @@
 // own readers, depth PNGs hold depth_m * depth_scale of the very render, any thread count gives
 // the same bytes, the resolved scenario round-trips, and the CLI fails with one clear line.
 
+#include <unistd.h>
+
 #include <gtest/gtest.h>
 
 #include <sys/wait.h>
@@ -49,7 +51,8 @@ ScenarioSpec short_lab() {
 class RunWriter : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
-    root_ = fs::path(HWR_BINARY_DIR) / "c2_run_writer_test";
+    // One folder per process: ctest runs each test of this suite in its own process, in parallel.
+    root_ = fs::path(HWR_BINARY_DIR) / ("run_writer_test_" + std::to_string(::getpid()));
     fs::remove_all(root_);
     RunOptions o;
     o.out_dir = (root_ / "t1").string();
@@ -274,7 +277,7 @@ TEST(RunWriterStereo, GivenStereoScenarioWhenWrittenThenRightImagesAreGrayAndLis
   spec.camera.stereo = true;
   spec.duration_s = 0.1;
   RunOptions o;
-  o.out_dir = std::string(HWR_BINARY_DIR) + "/c2_run_writer_stereo";
+  o.out_dir = std::string(HWR_BINARY_DIR) + "/run_writer_stereo_" + std::to_string(::getpid());
   fs::remove_all(o.out_dir);
   auto r = write_run(spec, o);
   ASSERT_TRUE(r.ok()) << r.status().to_string();
@@ -291,7 +294,8 @@ TEST(RunWriterStereo, GivenStereoScenarioWhenWrittenThenRightImagesAreGrayAndLis
 }
 
 TEST(RunWriterErrors, GivenAnOutputPathUnderAFileWhenWrittenThenAnIoErrorNamesThePath) {
-  const std::string file = std::string(HWR_BINARY_DIR) + "/c2_not_a_dir";
+  const std::string file =
+      std::string(HWR_BINARY_DIR) + "/run_writer_not_a_dir_" + std::to_string(::getpid());
   std::ofstream(file) << "x";
   RunOptions o;
   o.out_dir = file + "/out";
@@ -312,8 +316,8 @@ struct CliResult {
 CliResult run_cli(const std::string& args) {
   const fs::path exe = fs::path(HWR_BINARY_DIR) / "apps/hwr-sim/hwr-sim";
   EXPECT_TRUE(fs::exists(exe)) << "build the hwr-sim target before the sim tests";
-  const std::string out = std::string(HWR_BINARY_DIR) + "/c2_cli.out",
-                    err = std::string(HWR_BINARY_DIR) + "/c2_cli.err";
+  const std::string out = std::string(HWR_BINARY_DIR) + "/sim_cli_" + std::to_string(::getpid()) + ".out",
+                    err = std::string(HWR_BINARY_DIR) + "/sim_cli_" + std::to_string(::getpid()) + ".err";
   const int status = std::system((exe.string() + " " + args + " >" + out + " 2>" + err).c_str());
   CliResult r;
   r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
@@ -325,15 +329,15 @@ CliResult run_cli(const std::string& args) {
 }
 
 TEST(HwrSimCli, GivenUnknownScenarioWhenRunThenExitsOneWithOneClearLine) {
-  const CliResult r = run_cli("--scenario labz --out " + std::string(HWR_BINARY_DIR) + "/c2_cli_never");
+  const CliResult r = run_cli("--scenario labz --out " + std::string(HWR_BINARY_DIR) + "/sim_cli_never");
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_EQ(r.stderr_text,
             "hwr-sim: unknown scenario 'labz' (built-in: lab, outdoor, lab-revisit, outdoor-revisit)\n");
-  EXPECT_FALSE(fs::exists(std::string(HWR_BINARY_DIR) + "/c2_cli_never"));
+  EXPECT_FALSE(fs::exists(std::string(HWR_BINARY_DIR) + "/sim_cli_never"));
 }
 
 TEST(HwrSimCli, GivenUnwritableOutWhenRunThenExitsOneWithOneClearLine) {
-  const std::string file = std::string(HWR_BINARY_DIR) + "/c2_cli_file";
+  const std::string file = std::string(HWR_BINARY_DIR) + "/sim_cli_file_" + std::to_string(::getpid());
   std::ofstream(file) << "x";
   const CliResult r = run_cli("--scenario lab --no-images --out " + file + "/run");
   EXPECT_EQ(r.exit_code, 1);
@@ -344,17 +348,18 @@ TEST(HwrSimCli, GivenUnwritableOutWhenRunThenExitsOneWithOneClearLine) {
 }
 
 TEST(HwrSimCli, GivenBadScenarioFileWhenRunThenExitsOneNamingFileLineAndKey) {
-  const std::string yaml = std::string(HWR_BINARY_DIR) + "/c2_cli_bad.yaml";
+  const std::string yaml =
+      std::string(HWR_BINARY_DIR) + "/sim_cli_bad_" + std::to_string(::getpid()) + ".yaml";
   std::ofstream(yaml) << "base: lab\ncamera:\n  fps: 30\n";
   const CliResult r =
-      run_cli("--scenario " + yaml + " --out " + std::string(HWR_BINARY_DIR) + "/c2_cli_never");
+      run_cli("--scenario " + yaml + " --out " + std::string(HWR_BINARY_DIR) + "/sim_cli_never");
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_NE(r.stderr_text.find(yaml + ":3: unknown key 'camera.fps'"), std::string::npos) << r.stderr_text;
   fs::remove(yaml);
 }
 
 TEST(HwrSimCli, GivenSensorsOnlyRunWhenRunThenExitsZeroAndPrintsTheSummary) {
-  const std::string out = std::string(HWR_BINARY_DIR) + "/c2_cli_ok";
+  const std::string out = std::string(HWR_BINARY_DIR) + "/sim_cli_ok";
   fs::remove_all(out);
   const CliResult r = run_cli("--scenario outdoor --no-images --duration 3 --out " + out);
   EXPECT_EQ(r.exit_code, 0) << r.stderr_text;

@@ -284,14 +284,14 @@ TEST(Scenario, GivenNamesAndFilesWhenLoadedThenPresetsFilesAndErrorsAreTellApart
   ASSERT_FALSE(unknown.ok());
   EXPECT_NE(unknown.status().message().find("unknown scenario 'labb'"), std::string::npos);
   EXPECT_NE(unknown.status().message().find("lab, outdoor, lab-revisit, outdoor-revisit"), std::string::npos);
-  const std::string path = std::string(HWR_BINARY_DIR) + "/c2_scenario_test_quick.yaml";
+  const std::string path = std::string(HWR_BINARY_DIR) + "/scenario_test_quick.yaml";
   {
     std::ofstream f(path);
     f << "base: outdoor\nduration_s: 12.5\n";
   }
   auto s = load_scenario(path);
   ASSERT_TRUE(s.ok()) << s.status().to_string();
-  EXPECT_EQ(s->name, "c2_scenario_test_quick");  // named after the file
+  EXPECT_EQ(s->name, "scenario_test_quick");  // named after the file
   EXPECT_EQ(s->duration_s, 12.5);
   EXPECT_TRUE(s->gnss.enabled);
   std::remove(path.c_str());

@@ -8,17 +8,12 @@
 #include <gtest/gtest.h>
 
 #include "hwr/sim/renderer.hpp"
+#include "sim_test_util.hpp"
 
 namespace hwr::sim {
 namespace {
 
-Eigen::Isometry3d pose(const Eigen::Vector3d& t, const Eigen::Vector3d& rotation_vector) {
-  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  if (rotation_vector.norm() > 0)
-    T.linear() = Eigen::AngleAxisd(rotation_vector.norm(), rotation_vector.normalized()).toRotationMatrix();
-  T.translation() = t;
-  return T;
-}
+using testing::pose;
 
 WeldJointSpec fillet(const std::string& name, const Eigen::Isometry3d& T) {
   WeldJointSpec j;
@@ -140,26 +135,10 @@ TEST(SceneTruth, ButtPlatesMatchSpecGeometry) {
   EXPECT_TRUE(truth.seams[0].end_scene.isApprox(Eigen::Vector3d(L, 0, 0)));
 }
 
-// First crossing of a ray with a plate's surface (slab method in the plate frame): the entry, or
-// the exit when the ray starts inside (the mesh is surfaces, not solids); +inf on a miss.
+// First crossing of a ray with a plate's surface: the entry, or the exit when the ray starts inside
+// (the mesh is surfaces, not solids); +inf on a miss.
 double ray_plate(const PlateTruth& plate, const Eigen::Vector3d& o_scene, const Eigen::Vector3d& d_scene) {
-  const Eigen::Isometry3d T_plate_scene = plate.T_scene_plate.inverse();
-  const Eigen::Vector3d o = T_plate_scene * o_scene;
-  const Eigen::Vector3d d = T_plate_scene.linear() * d_scene.normalized();
-  double t0 = -std::numeric_limits<double>::infinity(), t1 = std::numeric_limits<double>::infinity();
-  for (int k = 0; k < 3; ++k) {
-    const double h = 0.5 * plate.size_m[k];
-    if (std::abs(d[k]) < 1e-15) {
-      if (std::abs(o[k]) > h) return std::numeric_limits<double>::infinity();
-      continue;
-    }
-    double a = (-h - o[k]) / d[k], b = (h - o[k]) / d[k];
-    if (a > b) std::swap(a, b);
-    t0 = std::max(t0, a);
-    t1 = std::min(t1, b);
-  }
-  if (t0 > t1 || t1 <= 0) return std::numeric_limits<double>::infinity();
-  return t0 > 0 ? t0 : t1;
+  return testing::ray_box_slab(plate.size_m, plate.T_scene_plate, o_scene, d_scene, /*exit_if_inside=*/true);
 }
 
 // For each corner and each of the three faces meeting there: aim a ray along the inward face

@@ -71,12 +71,14 @@ TEST(SimRunReplay, GivenAOneSecondLabRunWhenReplayedThenEveryFrameAndSampleArriv
     while (streams.frames.try_pop(f)) {
       if (!checked_depth) {
         // Oracle: the first depth PNG the writer listed, raw / depth_scale.
-        const cv::Mat raw = cv::imread((dir / first_listed_file(dir / "depth.txt")).string(), cv::IMREAD_UNCHANGED);
+        const cv::Mat raw =
+            cv::imread((dir / first_listed_file(dir / "depth.txt")).string(), cv::IMREAD_UNCHANGED);
         ASSERT_EQ(raw.type(), CV_16UC1);
         cv::Mat expected;
         raw.convertTo(expected, CV_32FC1, 1.0 / run->calibration.depth_scale);
         EXPECT_EQ(cv::norm(expected, f->depth_m, cv::NORM_INF), 0.0);
-        EXPECT_GT(cv::countNonZero(f->depth_m), static_cast<int>(f->depth_m.total() / 2)) << "a lab view has depth";
+        EXPECT_GT(cv::countNonZero(f->depth_m), static_cast<int>(f->depth_m.total() / 2))
+            << "a lab view has depth";
         checked_depth = true;
       }
       ++frames;

@@ -1,0 +1,30 @@
+// Runs a built program through the shell and captures what it prints, for the CLI tests.
+
+#pragma once
+
+#include <sys/wait.h>
+
+#include <cstdio>
+#include <string>
+
+namespace hwr::testing {
+
+struct CliRun {
+  int exit_code = -1;  // -1 when the program could not be started or did not exit normally
+  std::string out;     // stdout and stderr together
+};
+
+// Runs `program args` with stderr folded into stdout.
+inline CliRun run_cli(const std::string& program, const std::string& args) {
+  CliRun r;
+  FILE* p = ::popen((program + " " + args + " 2>&1").c_str(), "r");
+  if (p == nullptr) return r;
+  char buf[4096];
+  size_t n = 0;
+  while ((n = std::fread(buf, 1, sizeof(buf), p)) > 0) r.out.append(buf, n);
+  const int status = ::pclose(p);
+  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return r;
+}
+
+}  // namespace hwr::testing
