@@ -17,7 +17,7 @@ esac
 
 toolchain/install-deps.sh
 cmake --preset host-release
-cmake --build --preset host-release
+cmake --build --preset host-release --target hwr-sim hwr-robot hwr-eval
 bin=build/host-release/apps
 
 echo
@@ -33,10 +33,12 @@ echo "== 2/2 robot: HAL replay of the run through the fixed-rate scheduler =="
 cat <<MSG
 
 demo outputs:
-  $out/sim-lab/                 simulated run (TUM layout: rgb/, depth/, rgb.txt, depth.txt,
-                                groundtruth.txt; imu.csv, mag.csv, calibration.yaml,
-                                weld_groundtruth.yaml, scenario_resolved.yaml)
-  $out/robot-telemetry.txt      scheduler and sensor-stream telemetry of the replay
+  $out/sim-lab/
+      the simulated run: TUM layout (rgb/, depth/, rgb.txt, depth.txt, groundtruth.txt), imu.csv,
+      mag.csv, imu_state_groundtruth.csv, calibration.yaml, weld_groundtruth.yaml,
+      scenario_resolved.yaml (docs/simulator.md)
+  $out/robot-telemetry.txt
+      scheduler and sensor-stream telemetry of the replay
 
 pose estimation is the next stage (docs/architecture.md); once it writes a trajectory,
   build/host-release/apps/hwr-eval/hwr-eval ate $out/sim-lab/groundtruth.txt TRAJECTORY

@@ -198,6 +198,12 @@ int run(const Args& args) {
   std::printf("imu: samples=%" PRIu64 " dropped=%" PRIu64 " gaps=%" PRIu64 " non_finite=%" PRIu64
               " non_increasing=%" PRIu64 "\n",
               ih.samples, streams.imu.dropped(), ih.gaps, ih.non_finite, ih.non_increasing_t);
+  if (c.decode_waits > 0) {
+    std::printf("replay: the hal task waited %" PRIu64
+                " times, %.2f s in all, for frames to be decoded (replay is "
+                "I/O-bound; these waits are the hal task's overruns)\n",
+                c.decode_waits, hwr::core::ns_to_s(c.decode_wait_ns));
+  }
   std::printf("magnetometer: samples=%" PRIu64 "  gnss: fixes=%" PRIu64 " with_3d_fix=%" PRIu64 "\n",
               robot.mag, robot.gnss, robot.gnss_3d);
   std::printf("pose estimation: not in this build yet (docs/architecture.md)\n");

@@ -105,10 +105,17 @@ core::Status ReplaySource::poll(int64_t until_ns, SensorStreams* streams) {
     // pipeline holds every pool frame (then the frame comes on a later poll). Only this thread
     // and the pipeline, which runs on it too, release frames, so the test below is stable.
     bool got = ready_.try_pop(l);
-    while (!got && !prefetch_done_.load() &&
-           !(prefetch_starved_.load() && streams->frame_pool.available() == 0)) {
-      std::this_thread::sleep_for(std::chrono::microseconds(50));
-      got = ready_.try_pop(l);
+    if (!got) {
+      const auto wait_start = std::chrono::steady_clock::now();
+      while (!got && !prefetch_done_.load() &&
+             !(prefetch_starved_.load() && streams->frame_pool.available() == 0)) {
+        std::this_thread::sleep_for(std::chrono::microseconds(50));
+        got = ready_.try_pop(l);
+      }
+      ++counters_.decode_waits;
+      counters_.decode_wait_ns +=
+          std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now() - wait_start)
+              .count();
     }
     if (!got) got = ready_.try_pop(l);
     if (!got) break;

@@ -38,6 +38,10 @@ struct SourceCounters {
   uint64_t gnss = 0;
   uint64_t frames_dropped = 0;  // frame pool empty or frame ring full
   uint64_t frame_errors = 0;    // a frame that could not be read/decoded (skipped)
+  // Replay only: polls that waited for the prefetch thread to decode a frame, and the total wait
+  // (the replay is I/O-bound when these grow; the wait is part of the calling task's run time).
+  uint64_t decode_waits = 0;
+  int64_t decode_wait_ns = 0;
 };
 
 class SensorSource {
