@@ -1,6 +1,8 @@
 // hwr-sim: renders a simulated run (scenario preset or YAML file) into a TUM RGB-D style folder
 // with EuRoC-style IMU/magnetometer/GNSS files and exact ground truth. See docs/simulator.md.
 
+#include <unistd.h>
+
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -87,13 +89,19 @@ int main(int argc, char** argv) {
 
   const auto start = std::chrono::steady_clock::now();
   bool printed = false;
+  // On a terminal one line is rewritten in place; in a log, one line per 10 % of the frames.
+  const bool tty = isatty(STDERR_FILENO) != 0;
+  size_t last_decile = SIZE_MAX;
   auto progress = [&](size_t done, size_t total) {
     if (total == 0) return;
+    const size_t decile = done * 10 / total;
+    if (!tty && decile == last_decile) return;
+    last_decile = decile;
     const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    std::fprintf(stderr, "\rhwr-sim: frame %zu/%zu (%.0f%%, %.1f s)", done, total, 100.0 * done / total,
-                 elapsed);
+    std::fprintf(stderr, "%shwr-sim: frame %zu/%zu (%.0f%%, %.1f s)%s", tty ? "\r" : "", done, total,
+                 100.0 * done / total, elapsed, tty ? "" : "\n");
     std::fflush(stderr);
-    printed = true;
+    printed = tty;
   };
   auto run = hwr::sim::write_run(spec.value(), options, progress);
   if (printed) std::fprintf(stderr, "\n");
