@@ -6,6 +6,8 @@
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <system_error>
+#include <vector>
 
 #include <unistd.h>
 
@@ -25,12 +27,22 @@ inline const std::string kEurocImu40sMav0 = HWR_DATA_DIR "/euroc-v1-02-imu-40s/m
       << "dataset folder missing: " << (dir) << "\n(the shared data sets live in ../shared/data " \
       << "beside the repository; see shared/data/README.md)"
 
-// A fresh, empty folder under the system temp folder, unique per name and process.
+// A fresh, empty folder under the system temp folder, unique per name and process; removed when
+// the test program exits.
 inline std::filesystem::path scratch_dir(const std::string& name) {
+  struct Cleanup {
+    std::vector<std::filesystem::path> dirs;
+    ~Cleanup() {
+      std::error_code ec;
+      for (const auto& d : dirs) std::filesystem::remove_all(d, ec);
+    }
+  };
+  static Cleanup cleanup;
   const auto dir = std::filesystem::temp_directory_path() /
                    ("hwr_hal_test_" + name + "_" + std::to_string(static_cast<long>(::getpid())));
   std::filesystem::remove_all(dir);
   std::filesystem::create_directories(dir);
+  cleanup.dirs.push_back(dir);
   return dir;
 }
 

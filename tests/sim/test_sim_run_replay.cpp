@@ -92,7 +92,10 @@ TEST(SimRunReplay, GivenAOneSecondLabRunWhenReplayedThenEveryFrameAndSampleArriv
 }
 
 TEST(SimRunReplay, GivenAFolderWithoutCalibrationWhenOpenedThenItSaysWhatIsMissing) {
-  auto run = open_sim_run_log(fs::temp_directory_path().string());
+  const fs::path empty = fs::temp_directory_path() / ("hwr_sim_replay_empty_" + std::to_string(::getpid()));
+  fs::create_directories(empty);
+  auto run = open_sim_run_log(empty.string());
+  fs::remove_all(empty);
   ASSERT_FALSE(run.ok());
   EXPECT_NE(run.status().message().find("no calibration.yaml"), std::string::npos) << run.status().message();
 }
