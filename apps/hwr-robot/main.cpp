@@ -233,8 +233,8 @@ int main(int argc, char** argv) {
       char* end = nullptr;
       const char* v = value("--duration");
       args.duration_s = std::strtod(v, &end);
-      if (*end != '\0' || args.duration_s <= 0) {
-        std::fprintf(stderr, "hwr-robot: --duration: expected seconds > 0, got '%s'\n", v);
+      if (*end != '\0' || !(args.duration_s > 0 && args.duration_s <= 1e6)) {
+        std::fprintf(stderr, "hwr-robot: --duration: expected seconds in (0, 1e6], got '%s'\n", v);
         return 2;
       }
     } else if (a == "--realtime") {

@@ -24,7 +24,9 @@ void fill_span(const std::vector<T>& v, SourceInfo* info) {
 }
 
 core::Expected<ReplayLog> open_tum(const std::string& dir) {
-  auto ds = TumDataset::open(dir);
+  TumDatasetOptions options;
+  options.intrinsics = tum_intrinsics_for(dir);
+  auto ds = TumDataset::open(dir, options);
   if (!ds.ok()) return ds.status();
   auto shared = std::make_shared<TumDataset>(std::move(ds.value()));
   ReplayLog log;

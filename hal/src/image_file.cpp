@@ -14,7 +14,7 @@ core::Status decode_image_file(const std::string& path, int flags, std::vector<u
   std::error_code ec;
   const auto size = std::filesystem::file_size(path, ec);
   if (ec) {
-    if (!std::filesystem::exists(path)) return core::NotFound(path + ": image file not found");
+    if (ec == std::errc::no_such_file_or_directory) return core::NotFound(path + ": image file not found");
     return core::IoError(path + ": cannot stat image file: " + ec.message());
   }
   std::ifstream f(path, std::ios::binary);

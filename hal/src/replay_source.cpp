@@ -1,6 +1,9 @@
 #include "hwr/hal/replay_source.hpp"
 
+#include <cassert>
 #include <chrono>
+#include <exception>
+#include <string>
 #include <utility>
 
 #include "hwr/core/log.hpp"
@@ -62,17 +65,28 @@ void ReplaySource::prefetch_loop() {
   uint64_t failures = 0;
   for (size_t i = 0; i < log_.frame_t_ns.size() && !stop_.load(); ++i) {
     RgbdFrame* frame = nullptr;
-    // The pool is the memory bound: wait for the pipeline to release a frame.
-    while (!stop_.load() && (frame = streams_->frame_pool.acquire()) == nullptr) {
-      prefetch_starved_.store(true);
+    // The pool is the memory bound: wait for the pipeline to release a frame. The acquire and the
+    // starved flag change together under the lock, so poll() never sees a stale "starved".
+    while (!stop_.load()) {
+      {
+        std::lock_guard<std::mutex> lock(starve_mutex_);
+        frame = streams_->frame_pool.acquire();
+        prefetch_starved_ = (frame == nullptr);
+      }
+      if (frame != nullptr) break;
       std::this_thread::sleep_for(std::chrono::microseconds(200));
     }
-    prefetch_starved_.store(false);
     if (frame == nullptr) break;
     Loaded l;
     l.frame = frame;
     l.index = i;
-    const core::Status st = log_.load_frame(i, frame);
+    core::Status st;
+    try {
+      st = log_.load_frame(i, frame);
+    } catch (const std::exception& e) {
+      // An exception must not escape this thread (std::terminate); it is a bad frame like any other.
+      st = core::Internal(std::string("frame decoder threw: ") + e.what());
+    }
     l.ok = st.ok();
     if (!l.ok) {
       // A bad frame degrades the run; it never stops it. Report the first few in full.
@@ -86,7 +100,14 @@ void ReplaySource::prefetch_loop() {
   prefetch_done_.store(true);
 }
 
+bool ReplaySource::prefetcher_blocked() {
+  std::lock_guard<std::mutex> lock(starve_mutex_);
+  return prefetch_starved_ && streams_->frame_pool.available() == 0;
+}
+
 core::Status ReplaySource::poll(int64_t until_ns, SensorStreams* streams) {
+  // Frames belong to the pool of the streams given at create(); releasing into another is UB.
+  assert(streams == streams_);
   for (; next_imu_ < log_.imu.size() && log_.imu[next_imu_].t_ns <= until_ns; ++next_imu_) {
     streams->imu.push_drop_oldest(log_.imu[next_imu_]);
     ++counters_.imu;
@@ -107,15 +128,18 @@ core::Status ReplaySource::poll(int64_t until_ns, SensorStreams* streams) {
     bool got = ready_.try_pop(l);
     if (!got) {
       const auto wait_start = std::chrono::steady_clock::now();
-      while (!got && !prefetch_done_.load() &&
-             !(prefetch_starved_.load() && streams->frame_pool.available() == 0)) {
+      bool waited = false;
+      while (!got && !prefetch_done_.load() && !prefetcher_blocked()) {
         std::this_thread::sleep_for(std::chrono::microseconds(50));
+        waited = true;
         got = ready_.try_pop(l);
       }
-      ++counters_.decode_waits;
-      counters_.decode_wait_ns +=
-          std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now() - wait_start)
-              .count();
+      if (waited) {
+        ++counters_.decode_waits;
+        counters_.decode_wait_ns += std::chrono::duration_cast<std::chrono::nanoseconds>(
+                                        std::chrono::steady_clock::now() - wait_start)
+                                        .count();
+      }
     }
     if (!got) got = ready_.try_pop(l);
     if (!got) break;

@@ -107,8 +107,8 @@ TEST(ReplaySource, GivenAPipelineThatNeverConsumesWhenPolledThenFramesAreDropped
   ASSERT_TRUE(src.ok());
   for (int64_t t = 1'000 * kMs; t <= 3'000 * kMs; t += 5 * kMs)
     ASSERT_TRUE(src.value()->poll(t, &streams).ok());
-  // The ring holds 2 frames; the prefetcher holds the third pool frame, so it starves and the
-  // replay goes on without waiting forever.
+  // The ring holds 2 frames; the third pool frame is decoded, finds the ring full and is dropped
+  // back into the pool, so the replay goes on without waiting forever.
   EXPECT_EQ(streams.frames.size(), 2u);
   EXPECT_EQ(src.value()->counters().frames, 2u);
   src.value().reset();

@@ -178,3 +178,24 @@ TEST(SensorCsv, GivenAMissingFileOrAFolder_WhenRead_ThenErrorNamesThePath) {
 
 }  // namespace
 }  // namespace hwr::hal
+
+namespace hwr::hal {
+namespace {
+
+TEST(SensorCsv, GivenDoubleSignsInAField_WhenRead_ThenTheLineIsRejected) {
+  const auto dir = testing::scratch_dir("double_sign");
+  for (const char* bad : {"+-1.0", "++1.0", "+"}) {
+    testing::write_text(dir / "imu.csv",
+                        std::string("#timestamp [ns],w_x,w_y,w_z,a_x,a_y,a_z\n1000,0,0,0,0,0,") + bad + "\n");
+    auto imu = read_imu_csv((dir / "imu.csv").string());
+    ASSERT_FALSE(imu.ok()) << bad;
+    EXPECT_NE(imu.status().message().find("imu.csv:2"), std::string::npos) << imu.status().message();
+  }
+  testing::write_text(dir / "imu.csv", "#timestamp [ns],w_x,w_y,w_z,a_x,a_y,a_z\n1000,0,0,0,0,0,+9.81\n");
+  auto ok = read_imu_csv((dir / "imu.csv").string());
+  ASSERT_TRUE(ok.ok()) << ok.status().message();
+  EXPECT_DOUBLE_EQ(ok.value()[0].accel_mps2.z(), 9.81);
+}
+
+}  // namespace
+}  // namespace hwr::hal

@@ -9,6 +9,7 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <mutex>
 #include <string>
 #include <thread>
 #include <vector>
@@ -54,6 +55,8 @@ class ReplaySource final : public SensorSource {
   };
   ReplaySource(ReplayLog log, SensorStreams* streams);
   void prefetch_loop();
+  // True when the prefetcher waits for a pool frame and the pipeline holds all of them.
+  bool prefetcher_blocked();
 
   ReplayLog log_;
   SensorStreams* streams_;
@@ -62,7 +65,8 @@ class ReplaySource final : public SensorSource {
 
   core::SpscRing<Loaded> ready_;  // prefetch thread → poll()
   std::atomic<bool> stop_{false};
-  std::atomic<bool> prefetch_starved_{false};  // waiting for the pipeline to release a frame
+  std::mutex starve_mutex_;
+  bool prefetch_starved_ = false;  // guarded: the last acquire found the pool empty
   std::atomic<bool> prefetch_done_{false};
   std::thread prefetcher_;
 };

@@ -42,6 +42,21 @@ inline PinholeIntrinsics tum_fr3_intrinsics() {
   return k;
 }
 
+// The colour camera of a TUM sequence, chosen by the "freiburgN" in its folder name (the
+// benchmark's published calibration): fr1 and fr2 images carry lens distortion (OpenCV order),
+// fr3 images are already undistorted. Any other name: fr3.
+inline PinholeIntrinsics tum_intrinsics_for(const std::string& dir) {
+  PinholeIntrinsics k = tum_fr3_intrinsics();
+  if (dir.find("freiburg1") != std::string::npos) {
+    k.fx = 517.3, k.fy = 516.5, k.cx = 318.6, k.cy = 255.3;
+    k.distortion = {0.2624, -0.9531, -0.0054, 0.0026, 1.1633};
+  } else if (dir.find("freiburg2") != std::string::npos) {
+    k.fx = 520.9, k.fy = 521.0, k.cx = 325.1, k.cy = 249.7;
+    k.distortion = {0.2312, -0.7849, -0.0033, -0.0001, 0.9172};
+  }
+  return k;
+}
+
 struct TumDatasetOptions {
   // Images must match intrinsics.width/height when these are > 0.
   PinholeIntrinsics intrinsics = tum_fr3_intrinsics();
