@@ -1,5 +1,7 @@
 #include "hwr/core/config.hpp"
 
+#include "hwr/core/file_io.hpp"
+
 #include <yaml-cpp/yaml.h>
 
 #include <cctype>
@@ -193,12 +195,9 @@ Expected<ConfigDocument> ConfigDocument::parse(const std::string& yaml_text, con
 }
 
 Expected<ConfigDocument> ConfigDocument::load_file(const std::string& path) {
-  std::ifstream f(path, std::ios::binary);
-  if (!f) return NotFound(path + ": cannot open config file");
-  std::stringstream ss;
-  ss << f.rdbuf();
-  if (f.bad()) return IoError(path + ": read failed");
-  return parse(ss.str(), path);
+  std::string text;
+  HWR_RETURN_IF_ERROR(read_file(path, &text));
+  return parse(text, path);
 }
 
 ConfigMap ConfigDocument::root() { return ConfigMap(doc_, &doc_->root, ""); }

@@ -7,6 +7,7 @@
 #include <system_error>
 #include <sstream>
 
+#include "hwr/core/file_io.hpp"
 #include "hwr/core/timestamp_text.hpp"
 
 namespace hwr::core {
@@ -61,35 +62,27 @@ Expected<std::vector<StampedPose>> parse_tum_trajectory(const std::string& text,
 }
 
 Expected<std::vector<StampedPose>> read_tum_trajectory(const std::string& path) {
-  std::error_code ec;
-  // An ifstream opens a folder without error and reads nothing: that must not pass as empty.
-  if (std::filesystem::is_directory(path, ec))
-    return IoError(path + ": is a folder, expected a trajectory file");
-  std::ifstream f(path, std::ios::binary);
-  if (!f) return NotFound(path + ": cannot open trajectory file");
-  std::stringstream ss;
-  ss << f.rdbuf();
-  if (f.bad()) return IoError(path + ": read failed");
-  return parse_tum_trajectory(ss.str(), path);
+  std::string text;
+  HWR_RETURN_IF_ERROR(read_file(path, &text));
+  return parse_tum_trajectory(text, path);
 }
 
 Status write_tum_trajectory(const std::string& path, const std::vector<StampedPose>& poses,
                             const std::string& header_comment) {
-  std::ofstream f(path, std::ios::binary | std::ios::trunc);
-  if (!f) return IoError(path + ": cannot open for writing");
-  if (!header_comment.empty()) f << "# " << header_comment << "\n";
-  f << "# timestamp tx ty tz qx qy qz qw\n";
+  std::string text;
+  text.reserve(96 * poses.size() + 128);
+  if (!header_comment.empty()) text += "# " + header_comment + "\n";
+  text += "# timestamp tx ty tz qx qy qz qw\n";
   char buf[256];
   for (const StampedPose& p : poses) {
     const Eigen::Quaterniond q(p.T_world_body.linear());
     const Eigen::Vector3d t = p.T_world_body.translation();
     std::snprintf(buf, sizeof(buf), " %.9f %.9f %.9f %.12f %.12f %.12f %.12f\n", t.x(), t.y(), t.z(), q.x(),
                   q.y(), q.z(), q.w());
-    f << format_timestamp_s(p.t_ns, 9) << buf;
+    text += format_timestamp_s(p.t_ns, 9);
+    text += buf;
   }
-  f.flush();
-  if (!f) return IoError(path + ": write failed");
-  return Status::Ok();
+  return write_file_atomic(path, text);
 }
 
 }  // namespace hwr::core

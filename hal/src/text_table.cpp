@@ -2,27 +2,9 @@
 
 #include <charconv>
 #include <cmath>
-#include <filesystem>
-#include <fstream>
 #include <limits>
-#include <sstream>
-#include <system_error>
 
 namespace hwr::hal::text {
-
-core::Status read_file(const std::string& path, std::string* out) {
-  std::error_code ec;
-  const std::filesystem::file_status st = std::filesystem::status(path, ec);
-  if (!std::filesystem::exists(st)) return core::NotFound(path + ": file not found");
-  if (std::filesystem::is_directory(st)) return core::IoError(path + ": is a directory, expected a file");
-  std::ifstream f(path, std::ios::binary);
-  if (!f) return core::IoError(path + ": cannot open for reading");
-  std::ostringstream ss;
-  ss << f.rdbuf();
-  if (f.bad()) return core::IoError(path + ": read failed");
-  *out = std::move(ss).str();
-  return core::Status::Ok();
-}
 
 namespace {
 bool is_space(char c) { return c == ' ' || c == '\t'; }

@@ -8,12 +8,13 @@
 #include <string>
 #include <string_view>
 
+#include "hwr/core/file_io.hpp"
 #include "hwr/core/status.hpp"
 
 namespace hwr::hal::text {
 
-// The whole file in *out. Missing path: NotFound; a directory or unreadable file: IoError.
-core::Status read_file(const std::string& path, std::string* out);
+// Whole-file read (core/file_io.hpp).
+using core::read_file;
 
 // Calls fn(int line_no, std::string_view line) for every line that is not blank and does not
 // start with '#' (after leading whitespace); '\r' and surrounding whitespace are stripped.

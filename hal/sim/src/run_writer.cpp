@@ -240,13 +240,8 @@ core::Expected<RunSummary> write_run(const ScenarioSpec& spec_in, const RunOptio
   sum.imu_samples = imu.size();
   HWR_RETURN_IF_ERROR(text::write_file_atomic(out + "/imu.csv", imu_csv(imu)));
   HWR_RETURN_IF_ERROR(text::write_file_atomic(out + "/imu_state_groundtruth.csv", state_csv(gt, imu)));
-  {
-    const std::string path = out + "/groundtruth.txt";
-    HWR_RETURN_IF_ERROR(core::write_tum_trajectory(path + ".tmp", gt_cam,
-                                                   "hwr-sim " + spec.name + ": T_world_cam at the IMU rate"));
-    if (std::rename((path + ".tmp").c_str(), path.c_str()) != 0)
-      return core::IoError(path + ": rename failed");
-  }
+  HWR_RETURN_IF_ERROR(core::write_tum_trajectory(out + "/groundtruth.txt", gt_cam,
+                                                 "hwr-sim " + spec.name + ": T_world_cam at the IMU rate"));
   sum.files = {"imu.csv", "imu_state_groundtruth.csv", "groundtruth.txt"};
   if (spec.mag.enabled) {
     const std::vector<MagDipole> dipoles = mag_dipoles_for_scene(spec.scene, spec.mag, spec.seed);

@@ -66,46 +66,4 @@ bool isometry_from16(const std::vector<double>& v, Eigen::Isometry3d* T) {
   return true;
 }
 
-namespace {
-core::Status write_bytes_atomic(const std::string& path, const void* data, size_t size) {
-  const std::string tmp = path + ".tmp";
-  std::FILE* f = std::fopen(tmp.c_str(), "wb");
-  if (f == nullptr) return core::IoError(path + ": cannot open for writing: " + std::strerror(errno));
-  const size_t written = size == 0 ? 0 : std::fwrite(data, 1, size, f);
-  const bool ok = written == size && std::fflush(f) == 0;
-  const int err = errno;
-  if (std::fclose(f) != 0 || !ok) {
-    std::remove(tmp.c_str());
-    return core::IoError(path + ": write failed: " + std::strerror(err));
-  }
-  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-    const int e = errno;
-    std::remove(tmp.c_str());
-    return core::IoError(path + ": rename failed: " + std::strerror(e));
-  }
-  return core::Status::Ok();
-}
-}  // namespace
-
-core::Status write_file_atomic(const std::string& path, const std::string& bytes) {
-  return write_bytes_atomic(path, bytes.data(), bytes.size());
-}
-
-core::Status write_file_atomic(const std::string& path, const std::vector<unsigned char>& bytes) {
-  return write_bytes_atomic(path, bytes.data(), bytes.size());
-}
-
-core::Status read_file(const std::string& path, std::string* out) {
-  std::FILE* f = std::fopen(path.c_str(), "rb");
-  if (f == nullptr) return core::NotFound(path + ": cannot open: " + std::strerror(errno));
-  out->clear();
-  char buf[65536];
-  size_t n;
-  while ((n = std::fread(buf, 1, sizeof(buf), f)) > 0) out->append(buf, n);
-  const bool bad = std::ferror(f) != 0;
-  std::fclose(f);
-  if (bad) return core::IoError(path + ": read failed");
-  return core::Status::Ok();
-}
-
 }  // namespace hwr::sim::text

@@ -1,7 +1,5 @@
 #pragma once
-// Private to hwr_sim: text helpers for the YAML and CSV files the simulator writes, and the
-// write-to-temporary-then-rename file writer (a killed run never leaves a half-written file
-// under its final name).
+// Private to hwr_sim: text helpers for the YAML and CSV files the simulator writes.
 
 #include <string>
 #include <vector>
@@ -9,6 +7,7 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
+#include "hwr/core/file_io.hpp"
 #include "hwr/core/status.hpp"
 
 namespace hwr::sim::text {
@@ -26,9 +25,8 @@ std::string matrix16(const Eigen::Isometry3d& T);
 // (|R^T R - I| < 1e-6, det > 0). The rotation is re-orthonormalised.
 bool isometry_from16(const std::vector<double>& v, Eigen::Isometry3d* T);
 
-// Writes `bytes` to path + ".tmp", then renames it to path.
-core::Status write_file_atomic(const std::string& path, const std::string& bytes);
-core::Status write_file_atomic(const std::string& path, const std::vector<unsigned char>& bytes);
-core::Status read_file(const std::string& path, std::string* out);
+// Whole-file read and write-to-temporary-then-rename (core/file_io.hpp).
+using core::read_file;
+using core::write_file_atomic;
 
 }  // namespace hwr::sim::text

@@ -25,7 +25,8 @@ Expected<std::vector<StampedPose>> read_tum_trajectory(const std::string& path);
 Expected<std::vector<StampedPose>> parse_tum_trajectory(const std::string& text,
                                                         const std::string& source_name);
 
-// Writes with 9 fractional digits of seconds (nanoseconds survive a round trip) and a header.
+// Writes with 9 fractional digits of seconds (nanoseconds survive a round trip) and a header,
+// atomically (core/file_io.hpp: a killed writer never leaves a truncated file).
 Status write_tum_trajectory(const std::string& path, const std::vector<StampedPose>& poses,
                             const std::string& header_comment = "");
 

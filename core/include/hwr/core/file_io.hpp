@@ -1,0 +1,20 @@
+#pragma once
+// Whole-file reads and crash-safe whole-file writes, with errors that name the path.
+
+#include <string>
+#include <vector>
+
+#include "hwr/core/status.hpp"
+
+namespace hwr::core {
+
+// NotFound when the path does not exist, IoError for a folder or a failed read.
+Status read_file(const std::string& path, std::string* out);
+
+// Writes path + ".tmp", flushes it to disk (fsync), then renames it over path, so a process
+// killed at any moment leaves either the old file or the complete new one, never a truncated
+// file under the final name.
+Status write_file_atomic(const std::string& path, const std::string& bytes);
+Status write_file_atomic(const std::string& path, const std::vector<unsigned char>& bytes);
+
+}  // namespace hwr::core
