@@ -15,19 +15,24 @@ case "${1:-}" in
   *) echo "demo: unknown option '$1' (use --duration S or --full)" >&2; exit 2 ;;
 esac
 
-toolchain/install-deps.sh
+toolchain/install-deps.sh --with-bench-peers
 cmake --preset host-release
 cmake --build --preset host-release --target hwr-sim hwr-robot hwr-eval
 bin=build/host-release/apps
 
 echo
-echo "== 1/2 simulator: the lab welding workshop with exact ground truth =="
+echo "== 1/3 simulator: the lab welding workshop with exact ground truth =="
 rm -rf "$out/sim-lab"
 "$bin/hwr-sim/hwr-sim" --scenario lab --out "$out/sim-lab" --threads 2 "${duration[@]}"
 
 echo
-echo "== 2/2 robot: HAL replay of the run through the fixed-rate scheduler =="
-"$bin/hwr-robot/hwr-robot" --source "sim:$out/sim-lab" --quiet | tee "$out/robot-telemetry.txt"
+echo "== 2/3 robot: the run through the HAL, the fixed-rate scheduler and pose estimation =="
+"$bin/hwr-robot/hwr-robot" --source "sim:$out/sim-lab" --quiet --traj-out "$out/trajectory.txt" \
+  --timing-out "$out/timing.csv" | tee "$out/robot-telemetry.txt"
+
+echo
+echo "== 3/3 evaluation: the estimated trajectory against the simulator's ground truth =="
+"$bin/hwr-eval/hwr-eval" ate "$out/sim-lab/groundtruth.txt" "$out/trajectory.txt" | tee "$out/ate.txt"
 
 
 cat <<MSG
@@ -38,9 +43,13 @@ demo outputs:
       mag.csv, imu_state_groundtruth.csv, calibration.yaml, weld_groundtruth.yaml,
       scenario_resolved.yaml (docs/simulator.md)
   $out/robot-telemetry.txt
-      scheduler and sensor-stream telemetry of the replay
+      scheduler telemetry, sensor-stream health and pose-estimation counters of the run
+  $out/trajectory.txt
+      the estimated camera trajectory T_world_cam at every image time (TUM format)
+  $out/timing.csv
+      per-frame time of every pipeline stage (docs/estimation.md)
+  $out/ate.txt
+      absolute trajectory error against the simulator's ground truth (docs/evaluation.md)
 
-pose estimation is the next stage (docs/architecture.md); once it writes a trajectory,
-  build/host-release/apps/hwr-eval/hwr-eval ate $out/sim-lab/groundtruth.txt TRAJECTORY
-scores it against the simulator's ground truth.
+mapping, detection and the ground station are the next stages (docs/architecture.md).
 MSG

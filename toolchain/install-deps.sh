@@ -28,7 +28,7 @@ agx=()
 agx_packages=(g++-aarch64-linux-gnu qemu-user binutils-aarch64-linux-gnu)
 for arg in "$@"; do
   case "$arg" in
-    --with-bench-peers) bench_peers=(libopencv-contrib-dev) ;;
+    --with-bench-peers) bench_peers=(libopencv-contrib-dev libceres-dev) ;;
     --agx) agx=("${agx_packages[@]}") ;;
     *) echo "install-deps: unknown option '$arg' (use --with-bench-peers, --agx)" >&2; exit 2 ;;
   esac

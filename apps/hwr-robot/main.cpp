@@ -1,51 +1,76 @@
-// hwr-robot: the robot process. Today it runs the HAL into the fixed-rate scheduler: a source
-// (dataset replay or a simulator run) is polled by the "hal" task into bounded rings, and the
-// pipeline tasks drain them through stream-health monitors, where pose estimation plugs in next
-// (docs/architecture.md). Replay runs on a simulated clock: deterministic, faster than real time;
-// --realtime paces it at sensor rate on the monotonic clock.
+// hwr-robot: the robot process. A source (dataset replay, a simulator run on disk, or the
+// simulator rendering live) is polled by the "hal" task into bounded rings; the fixed-rate
+// scheduler's pipeline tasks drain them into pose estimation (docs/estimation.md): the inertial
+// task feeds the IMU filter, the camera task tracks frames, the mapping task runs the
+// sliding-window bundle adjustment; a full bundle adjustment ends the run. Replay runs on a
+// simulated clock: deterministic, faster than real time; --realtime paces it at sensor rate.
 #include <unistd.h>
 
 #include <cinttypes>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <filesystem>
 #include <memory>
 #include <string>
 
+#include "hwr/core/file_io.hpp"
 #include "hwr/core/log.hpp"
 #include "hwr/core/scheduler.hpp"
 #include "hwr/core/time.hpp"
+#include "hwr/core/tum_trajectory.hpp"
+#include "hwr/estimation/estimator_config.hpp"
+#include "hwr/estimation/pose_estimator.hpp"
+#include "hwr/hal/fault_injection.hpp"
 #include "hwr/hal/replay_source.hpp"
 #include "hwr/hal/stream_health.hpp"
 #if HWR_WITH_SIM
+#include "hwr/sim/scenario.hpp"
+#include "hwr/sim/sim_live_log.hpp"
 #include "hwr/sim/sim_run_replay.hpp"
 #endif
 
 namespace {
 
 using hwr::core::kNsPerS;
+using hwr::estimation::TrackState;
 
 // Scheduler task table: rate, time budget, priority (0 = highest).
 constexpr hwr::core::TaskSpec kTasks[] = {
     {"hal", 200.0, 1'000'000, 0},      // poll the source into the rings
-    {"inertial", 200.0, 500'000, 1},   // IMU, magnetometer, GNSS rings
-    {"camera", 30.0, 25'000'000, 2},   // frames
+    {"inertial", 200.0, 500'000, 1},   // IMU filter propagation; magnetometer, GNSS
+    {"camera", 30.0, 25'000'000, 2},   // visual tracking of every new frame
+    {"mapping", 10.0, 60'000'000, 3},  // sliding-window bundle adjustment after a new keyframe
     {"telemetry", 1.0, 1'000'000, 9},  // status line
 };
-enum TaskIndex : size_t { kHal = 0, kInertial, kCamera, kTelemetry };
+enum TaskIndex : size_t { kHal = 0, kInertial, kCamera, kMapping, kTelemetry, kTaskCount };
+
+// IMU samples newer than this stay queued so a frame still finds the samples around its time.
+constexpr int64_t kImuHoldbackNs = 60'000'000;
 
 struct Args {
   std::string source;
   double duration_s = 0;  // 0: the whole source
   bool realtime = false;
   bool quiet = false;
+  std::string traj_out, timing_out, gt_out, faults, config;
+  bool use_imu = true, local_ba = true, full_ba = true;
 };
 
 void usage() {
   std::fprintf(
       stderr,
-      "usage: hwr-robot --source KIND:PATH [--duration S] [--realtime] [--quiet]\n"
-      "  KIND: sim (a folder written by hwr-sim), tum (TUM RGB-D folder), euroc (EuRoC folder or mav0)\n");
+      "usage: hwr-robot --source KIND:WHAT [--config FILE] [--duration S] [--realtime] [--quiet]\n"
+      "                 [--traj-out FILE] [--timing-out FILE] [--gt-out FILE] [--faults SPEC]\n"
+      "                 [--no-imu] [--no-local-ba] [--no-full-ba]\n"
+      "  KIND:WHAT  sim:NAME|FILE.yaml (the simulator renders live), sim:DIR (a run written by hwr-sim),\n"
+      "             tum:DIR (TUM RGB-D folder), euroc:DIR (EuRoC folder or mav0)\n"
+      "  --config FILE      estimation settings (YAML, section estimation:; config/estimation.yaml lists "
+      "them)\n"
+      "  --traj-out FILE    camera poses T_world_cam at every tracked image time (TUM format)\n"
+      "  --timing-out FILE  per-frame CSV, one column per pipeline stage (milliseconds)\n"
+      "  --gt-out FILE      (sim sources) ground-truth T_world_cam at the image times (TUM format)\n"
+      "  --faults SPEC      inject sensor faults, e.g. dropout=30:2,exposure=40:2.5,depth-nan=10:5:0.3\n");
 }
 
 // Replay paced at sensor rate: the timeline is the source's time, advancing with CLOCK_MONOTONIC.
@@ -64,9 +89,11 @@ struct Robot {
   hwr::hal::SensorStreams* streams = nullptr;
   hwr::hal::SensorSource* source = nullptr;
   hwr::core::Scheduler* scheduler = nullptr;
+  hwr::estimation::PoseEstimator* estimator = nullptr;
   hwr::hal::StreamMonitor imu{200.0};
   hwr::hal::StreamMonitor camera{30.0};
   uint64_t mag = 0, gnss = 0, gnss_3d = 0;
+  int64_t last_frame_ms_x100 = 0;
   hwr::core::Status error;
   bool quiet = false;
 };
@@ -78,12 +105,18 @@ void hal_task(void* ctx, int64_t now_ns) {
   if (!r->error.ok() || r->source->finished()) r->scheduler->request_stop();
 }
 
-void inertial_task(void* ctx, int64_t) {
+void inertial_task(void* ctx, int64_t now_ns) {
   auto* r = static_cast<Robot*>(ctx);
   hwr::hal::ImuSample s;
-  while (r->streams->imu.try_pop(s)) r->imu.check(s);
+  while (r->streams->imu.try_pop(s)) {
+    if (r->imu.check(s)) r->estimator->add_imu(s);
+  }
+  r->estimator->advance_imu(now_ns - kImuHoldbackNs);
   hwr::hal::MagSample m;
-  while (r->streams->mag.try_pop(m)) ++r->mag;
+  while (r->streams->mag.try_pop(m)) {
+    ++r->mag;
+    r->estimator->add_mag(m);
+  }
   hwr::hal::GnssFix g;
   while (r->streams->gnss.try_pop(g)) {
     ++r->gnss;
@@ -96,58 +129,142 @@ void camera_task(void* ctx, int64_t) {
   hwr::hal::RgbdFrame* f = nullptr;
   while (r->streams->frames.try_pop(f)) {
     r->camera.check(*f);
+    r->estimator->process_frame(*f);
     r->streams->frame_pool.release(f);
   }
+}
+
+void mapping_task(void* ctx, int64_t) {
+  auto* r = static_cast<Robot*>(ctx);
+  if (!r->estimator->local_ba_due()) return;
+  auto report = r->estimator->run_local_ba();
+  if (!report.ok()) HWR_LOG_WARN("robot", "local bundle adjustment: %s", report.status().message().c_str());
 }
 
 void telemetry_task(void* ctx, int64_t now_ns) {
   auto* r = static_cast<Robot*>(ctx);
   if (r->quiet) return;
   const hwr::hal::SourceCounters c = r->source->counters();
-  hwr::core::TaskTelemetry t[4];
-  r->scheduler->snapshot(t, 4);
+  hwr::core::TaskTelemetry t[kTaskCount];
+  r->scheduler->snapshot(t, kTaskCount);
   uint64_t overruns = 0;
   for (const auto& x : t) overruns += x.overruns;
+  const auto e = r->estimator->counters();
+  const auto& timings = r->estimator->timings();
+  double ms = 0;
+  const size_t n = std::min<size_t>(timings.size(), 30);
+  for (size_t i = timings.size() - n; i < timings.size(); ++i) ms += timings[i].total_ns * 1e-6;
   std::fprintf(stderr,
-               "\rhwr-robot t=%8.2fs frames=%" PRIu64 " imu=%" PRIu64 " mag=%" PRIu64 " gnss=%" PRIu64
-               " dropped=%" PRIu64 " overruns=%" PRIu64 "   ",
-               hwr::core::ns_to_s(now_ns - r->scheduler->start_ns()), c.frames, c.imu, c.mag, c.gnss,
-               c.frames_dropped + r->streams->imu.dropped(), overruns);
+               "\rhwr-robot t=%7.1fs frames=%" PRIu64 " %s kf=%" PRIu64 " pts=%d lost=%" PRIu64
+               " frame=%.1fms dropped=%" PRIu64 " overruns=%" PRIu64 "   ",
+               hwr::core::ns_to_s(now_ns - r->scheduler->start_ns()), c.frames,
+               e.visual_only ? (e.tracker.frames ? "visual-only" : "waiting")
+                             : (e.imu_initialized ? "visual-inertial" : "imu-init"),
+               e.tracker.keyframes, r->estimator->tracker().points().alive(), e.tracker.lost,
+               n ? ms / n : 0.0, c.frames_dropped + r->streams->imu.dropped(), overruns);
   if (!isatty(STDERR_FILENO)) std::fputc('\n', stderr);
 }
 
-hwr::core::Expected<hwr::hal::ReplayLog> open_log(const std::string& spec) {
+struct OpenedSource {
+  hwr::hal::ReplayLog log;
+  std::vector<hwr::core::StampedPose> gt_at_frames;  // sim only
+};
+
+hwr::core::Expected<OpenedSource> open_source(const std::string& spec) {
+  OpenedSource out;
   if (spec.rfind("sim:", 0) == 0) {
 #if HWR_WITH_SIM
-    auto run = hwr::sim::open_sim_run_log(spec.substr(4));
-    if (!run.ok()) return run.status();
-    return std::move(run->log);
+    const std::string what = spec.substr(4);
+    if (std::filesystem::is_directory(what)) {
+      auto run = hwr::sim::open_sim_run_log(what);
+      if (!run.ok()) return run.status();
+      out.log = std::move(run->log);
+      return out;
+    }
+    auto scenario = hwr::sim::load_scenario(what);
+    if (!scenario.ok()) return scenario.status();
+    auto live = hwr::sim::open_sim_live_log(scenario.value());
+    if (!live.ok()) return live.status();
+    out.log = std::move(live->log);
+    out.gt_at_frames = std::move(live->groundtruth_T_world_cam_at_frames);
+    return out;
 #else
     return hwr::core::Unavailable("this build has no simulator support (HWR_WITH_SIM=OFF)");
 #endif
   }
-  return hwr::hal::open_dataset_log(spec);
+  auto log = hwr::hal::open_dataset_log(spec);
+  if (!log.ok()) return log.status();
+  out.log = std::move(log.value());
+  return out;
+}
+
+hwr::core::Status write_timings(const std::string& path,
+                                const std::vector<hwr::estimation::FrameTiming>& rows) {
+  std::string csv =
+      "t_s,imu_ms,extract_ms,match_ms,pose_ms,keyframe_ms,total_ms,local_ba_ms,features,matches,inliers,"
+      "state,keyframe\n";
+  char line[256];
+  for (const auto& r : rows) {
+    std::snprintf(line, sizeof(line), "%.6f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%d,%d,%d,%s,%d\n",
+                  hwr::core::ns_to_s(r.t_ns), r.imu_ns * 1e-6, r.track.extract_ns * 1e-6,
+                  r.track.match_ns * 1e-6, r.track.pose_ns * 1e-6, r.track.keyframe_ns * 1e-6,
+                  r.total_ns * 1e-6, r.local_ba_ns * 1e-6, r.features, r.matches, r.inliers,
+                  hwr::estimation::track_state_name(r.state), r.keyframe ? 1 : 0);
+    csv += line;
+  }
+  return hwr::core::write_file_atomic(path, csv);
 }
 
 int run(const Args& args) {
-  auto log = open_log(args.source);
-  if (!log.ok()) {
-    std::fprintf(stderr, "hwr-robot: %s\n", log.status().message().c_str());
+  auto opened = open_source(args.source);
+  if (!opened.ok()) {
+    std::fprintf(stderr, "hwr-robot: %s\n", opened.status().message().c_str());
     return 1;
   }
-  const hwr::hal::SourceInfo info = log->info;
-  hwr::hal::SensorStreamsConfig cfg;
-  if (info.intrinsics.valid()) {
-    cfg.width = info.intrinsics.width;
-    cfg.height = info.intrinsics.height;
+  hwr::hal::ReplayLog log = std::move(opened->log);
+  std::shared_ptr<hwr::hal::FaultReport> fault_report;
+  if (!args.faults.empty()) {
+    auto spec = hwr::hal::parse_fault_spec(args.faults);
+    if (!spec.ok()) {
+      std::fprintf(stderr, "hwr-robot: --faults: %s\n", spec.status().message().c_str());
+      return 2;
+    }
+    auto faulty = hwr::hal::apply_faults(std::move(log), spec.value(), &fault_report);
+    if (!faulty.ok()) {
+      std::fprintf(stderr, "hwr-robot: --faults: %s\n", faulty.status().message().c_str());
+      return 1;
+    }
+    log = std::move(faulty.value());
   }
+  const hwr::hal::SourceInfo info = log.info;
+  if (!info.intrinsics.valid()) {
+    std::fprintf(stderr, "hwr-robot: source %s has no camera intrinsics\n", info.name.c_str());
+    return 1;
+  }
+  hwr::hal::SensorStreamsConfig cfg;
+  cfg.width = info.intrinsics.width;
+  cfg.height = info.intrinsics.height;
   cfg.stereo = info.stereo;
   hwr::hal::SensorStreams streams(cfg);
-  auto source = hwr::hal::ReplaySource::create(std::move(log.value()), &streams);
+  auto source = hwr::hal::ReplaySource::create(std::move(log), &streams);
   if (!source.ok()) {
     std::fprintf(stderr, "hwr-robot: %s\n", source.status().message().c_str());
     return 1;
   }
+
+  hwr::estimation::PoseEstimatorConfig est_cfg;
+  if (!args.config.empty()) {
+    auto loaded = hwr::estimation::load_estimator_config(args.config);
+    if (!loaded.ok()) {
+      std::fprintf(stderr, "hwr-robot: --config: %s\n", loaded.status().message().c_str());
+      return 2;
+    }
+    est_cfg = loaded.value();
+  }
+  est_cfg.use_imu = est_cfg.use_imu && args.use_imu;
+  est_cfg.local_ba_enabled = est_cfg.local_ba_enabled && args.local_ba;
+  est_cfg.full_ba_at_end = est_cfg.full_ba_at_end && args.full_ba;
+  auto estimator = std::make_unique<hwr::estimation::PoseEstimator>(est_cfg, info);
 
   const int64_t t0 = info.first_t_ns;
   hwr::core::SimClock sim_clock(t0);
@@ -155,18 +272,20 @@ int run(const Args& args) {
   hwr::core::MonotonicClock exec_clock;
   hwr::core::Clock& timeline = args.realtime ? static_cast<hwr::core::Clock&>(paced_clock) : sim_clock;
 
-  hwr::core::Scheduler sched(kTasks, sizeof(kTasks) / sizeof(kTasks[0]), timeline);
+  hwr::core::Scheduler sched(kTasks, kTaskCount, timeline);
   sched.set_execution_clock(exec_clock);  // budgets are checked against real work
   Robot robot;
   robot.streams = &streams;
   robot.source = source->get();
   robot.scheduler = &sched;
+  robot.estimator = estimator.get();
   robot.quiet = args.quiet;
   robot.imu = hwr::hal::StreamMonitor(info.imu_rate_hz > 0 ? info.imu_rate_hz : 200.0);
   robot.camera = hwr::hal::StreamMonitor(info.camera_rate_hz > 0 ? info.camera_rate_hz : 30.0);
   sched.bind(kHal, hal_task, &robot);
   sched.bind(kInertial, inertial_task, &robot);
   sched.bind(kCamera, camera_task, &robot);
+  sched.bind(kMapping, mapping_task, &robot);
   sched.bind(kTelemetry, telemetry_task, &robot);
   sched.start(t0);
 
@@ -177,12 +296,17 @@ int run(const Args& args) {
                                           : info.last_t_ns + hwr::core::kNsPerS / 10;
   const int64_t wall0 = exec_clock.now_ns();
   hwr::core::Status st = sched.run_until(end);
-  // Hand the last samples to the pipeline tasks.
-  inertial_task(&robot, end);
+  // Hand the last samples to the pipeline.
+  inertial_task(&robot, end + kImuHoldbackNs);
   camera_task(&robot, end);
+  if (robot.estimator->local_ba_due()) mapping_task(&robot, end);
   const double wall_s = hwr::core::ns_to_s(exec_clock.now_ns() - wall0);
   if (!st.ok()) robot.error = st;
   if (!args.quiet) std::fputc('\n', stderr);
+
+  const int64_t full0 = exec_clock.now_ns();
+  auto full = estimator->finish();
+  const double full_s = hwr::core::ns_to_s(exec_clock.now_ns() - full0);
 
   char table[4096];
   sched.format_telemetry(table, sizeof(table));
@@ -206,12 +330,71 @@ int run(const Args& args) {
   }
   std::printf("magnetometer: samples=%" PRIu64 "  gnss: fixes=%" PRIu64 " with_3d_fix=%" PRIu64 "\n",
               robot.mag, robot.gnss, robot.gnss_3d);
-  std::printf("pose estimation: not in this build yet (docs/architecture.md)\n");
+  if (fault_report) {
+    std::printf("faults injected: frames_removed=%" PRIu64 " exposure_changed=%" PRIu64
+                " depth_holes=%" PRIu64 " imu_removed=%" PRIu64 "\n",
+                fault_report->frames_removed.load(), fault_report->frames_exposure_changed.load(),
+                fault_report->frames_with_depth_holes.load(), fault_report->imu_removed.load());
+  }
+  const auto e = estimator->counters();
+  std::printf("estimation: mode=%s frames=%" PRIu64 " tracked=%" PRIu64 " recovered=%" PRIu64 " lost=%" PRIu64
+              " waiting=%" PRIu64 " bad_frames=%" PRIu64 "\n",
+              e.visual_only ? "visual-only" : "visual-inertial", e.tracker.frames, e.tracker.tracked,
+              e.tracker.recovered, e.tracker.lost, e.frames_waiting_for_init, e.tracker.bad_frames);
+  std::printf("estimation: keyframes=%" PRIu64 " points=%d (depth %" PRIu64 ", triangulated %" PRIu64
+              ", culled %" PRIu64 ") local_ba=%" PRIu64 " (failed %" PRIu64 ") imu_updates=%" PRIu64
+              " gated=%" PRIu64 " filter_resets=%" PRIu64 "\n",
+              e.tracker.keyframes, estimator->tracker().points().alive(), e.tracker.points_from_depth,
+              e.tracker.points_triangulated, e.tracker.points_culled, e.local_ba_runs, e.local_ba_failures,
+              e.mekf.updates, e.visual_updates_gated, e.filter_resets);
+  if (full.ok()) {
+    std::printf(
+        "full bundle adjustment: cameras=%d points=%d observations=%d cost %.4g -> %.4g in %d iterations, "
+        "%.2f s\n",
+        full->cameras, full->points, full->observations, full->summary.initial_cost, full->summary.final_cost,
+        full->summary.iterations, full_s);
+  } else {
+    std::fprintf(stderr, "hwr-robot: full bundle adjustment: %s\n", full.status().message().c_str());
+  }
+  int rc = 0;
+  if (!args.traj_out.empty()) {
+    const auto traj = estimator->trajectory();
+    const hwr::core::Status ws = hwr::core::write_tum_trajectory(args.traj_out, traj);
+    if (!ws.ok()) {
+      std::fprintf(stderr, "hwr-robot: --traj-out: %s\n", ws.message().c_str());
+      rc = 1;
+    } else {
+      std::printf("trajectory: %zu poses -> %s\n", traj.size(), args.traj_out.c_str());
+    }
+  }
+  if (!args.timing_out.empty()) {
+    const hwr::core::Status ws = write_timings(args.timing_out, estimator->timings());
+    if (!ws.ok()) {
+      std::fprintf(stderr, "hwr-robot: --timing-out: %s\n", ws.message().c_str());
+      rc = 1;
+    } else {
+      std::printf("timings: %zu frames -> %s\n", estimator->timings().size(), args.timing_out.c_str());
+    }
+  }
+  if (!args.gt_out.empty()) {
+    if (opened->gt_at_frames.empty()) {
+      std::fprintf(stderr, "hwr-robot: --gt-out: this source has no ground truth at image times\n");
+      rc = 1;
+    } else {
+      const hwr::core::Status ws = hwr::core::write_tum_trajectory(args.gt_out, opened->gt_at_frames);
+      if (!ws.ok()) {
+        std::fprintf(stderr, "hwr-robot: --gt-out: %s\n", ws.message().c_str());
+        rc = 1;
+      } else {
+        std::printf("ground truth: %zu poses -> %s\n", opened->gt_at_frames.size(), args.gt_out.c_str());
+      }
+    }
+  }
   if (!robot.error.ok()) {
     std::fprintf(stderr, "hwr-robot: %s\n", robot.error.to_string().c_str());
     return 1;
   }
-  return 0;
+  return rc;
 }
 
 }  // namespace
@@ -237,6 +420,22 @@ int main(int argc, char** argv) {
         std::fprintf(stderr, "hwr-robot: --duration: expected seconds in (0, 1e6], got '%s'\n", v);
         return 2;
       }
+    } else if (a == "--config") {
+      args.config = value("--config");
+    } else if (a == "--traj-out") {
+      args.traj_out = value("--traj-out");
+    } else if (a == "--timing-out") {
+      args.timing_out = value("--timing-out");
+    } else if (a == "--gt-out") {
+      args.gt_out = value("--gt-out");
+    } else if (a == "--faults") {
+      args.faults = value("--faults");
+    } else if (a == "--no-imu") {
+      args.use_imu = false;
+    } else if (a == "--no-local-ba") {
+      args.local_ba = false;
+    } else if (a == "--no-full-ba") {
+      args.full_ba = false;
     } else if (a == "--realtime") {
       args.realtime = true;
     } else if (a == "--quiet") {

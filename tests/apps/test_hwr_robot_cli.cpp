@@ -1,7 +1,10 @@
 // hwr-robot, run as a program: a real dataset replays through the scheduler with every frame
 // delivered; bad sources give one clear line and exit code 1.
 
+#include <unistd.h>
+
 #include <filesystem>
+#include <fstream>
 #include <string>
 
 #include <gtest/gtest.h>
@@ -25,6 +28,35 @@ TEST(HwrRobotCli, GivenTheTumTeddySequenceWhenReplayedThenEveryAssociatedFrameRe
   // 193 associated colour/depth pairs (TUM associate.py rule), none dropped or unreadable.
   EXPECT_NE(r.out.find("camera: frames=193 dropped=0 unreadable=0"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("hal "), std::string::npos) << "no scheduler telemetry table:\n" << r.out;
+  EXPECT_NE(r.out.find("mapping "), std::string::npos) << "no mapping task in the table:\n" << r.out;
+}
+
+TEST(HwrRobotCli, GivenTrajAndTimingOutputsWhenRunOnTeddyThenBothFilesHoldEveryTrackedFrame) {
+  ASSERT_TRUE(std::filesystem::is_directory(kTeddy)) << "dataset folder missing: " << kTeddy;
+  const std::string dir = ::testing::TempDir() + "hwr_robot_cli_" + std::to_string(::getpid());
+  std::filesystem::create_directories(dir);
+  const CliRun r = run_robot("--source tum:" + kTeddy + " --quiet --traj-out " + dir +
+                             "/traj.txt --timing-out " + dir + "/timing.csv");
+  EXPECT_EQ(r.exit_code, 0) << r.out;
+  EXPECT_NE(r.out.find("estimation: mode=visual-only frames=193 tracked=193"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("trajectory: 193 poses"), std::string::npos) << r.out;
+  std::ifstream traj(dir + "/traj.txt"), timing(dir + "/timing.csv");
+  std::string line;
+  int poses = 0, rows = 0;
+  while (std::getline(traj, line)) poses += (!line.empty() && line[0] != '#') ? 1 : 0;
+  std::getline(timing, line);
+  EXPECT_EQ(line.rfind("t_s,imu_ms,extract_ms,match_ms,pose_ms,keyframe_ms,total_ms,local_ba_ms", 0), 0u)
+      << line;
+  while (std::getline(timing, line)) ++rows;
+  EXPECT_EQ(poses, 193);
+  EXPECT_EQ(rows, 193);
+  std::filesystem::remove_all(dir);
+}
+
+TEST(HwrRobotCli, GivenABadFaultSpecThenItNamesTheTokenAndExitCode2) {
+  const CliRun r = run_robot("--source tum:" + kTeddy + " --faults dropout=3:-1");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.out.find("dropout=3:-1"), std::string::npos) << r.out;
 }
 
 TEST(HwrRobotCli, GivenAMissingFolderWhenStartedThenOneLineAndExitCode1) {

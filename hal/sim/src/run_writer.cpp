@@ -9,15 +9,11 @@
 #include <thread>
 
 #include <opencv2/imgcodecs.hpp>
-#include <opencv2/imgproc.hpp>
 
-#include "hwr/core/time.hpp"
 #include "hwr/core/timestamp_text.hpp"
 #include "hwr/core/tum_trajectory.hpp"
-#include "hwr/sim/random.hpp"
-#include "hwr/sim/sample_times.hpp"
 #include "hwr/sim/sim_calibration.hpp"
-#include "hwr/sim/world_frame.hpp"
+#include "sim_frame_source.hpp"
 #include "sim_text.hpp"
 
 namespace hwr::sim {
@@ -48,13 +44,7 @@ std::string imu_csv(const std::vector<ImuRecord>& imu) {
   return s;
 }
 
-struct GroundTruthRow {
-  int64_t t_ns = 0;
-  Eigen::Isometry3d T_world_imu;
-  Eigen::Vector3d v_world_mps;
-};
-
-std::string state_csv(const std::vector<GroundTruthRow>& gt, const std::vector<ImuRecord>& imu) {
+std::string state_csv(const std::vector<SimGroundTruthRow>& gt, const std::vector<ImuRecord>& imu) {
   std::string s =
       "#timestamp, p_RS_R_x [m], p_RS_R_y [m], p_RS_R_z [m], q_RS_w [], q_RS_x [], q_RS_y [], q_RS_z [], "
       "v_RS_R_x [m s^-1], v_RS_R_y [m s^-1], v_RS_R_z [m s^-1], b_w_RS_S_x [rad s^-1], b_w_RS_S_y [rad "
@@ -175,23 +165,16 @@ void depth_to_u16(const cv::Mat& depth_m, double depth_scale, cv::Mat* depth_u16
   for (int r = 0; r < depth_m.rows; ++r) {
     const float* in = depth_m.ptr<float>(r);
     uint16_t* out = depth_u16->ptr<uint16_t>(r);
-    for (int c = 0; c < depth_m.cols; ++c) {
-      const double raw = std::round(static_cast<double>(in[c]) * depth_scale);
-      out[c] = (raw > 0.0 && raw <= 65535.0) ? static_cast<uint16_t>(raw) : 0;
-    }
+    for (int c = 0; c < depth_m.cols; ++c) out[c] = depth_raw_u16(in[c], depth_scale);
   }
 }
 
 core::Expected<RunSummary> write_run(const ScenarioSpec& spec_in, const RunOptions& options,
                                      const RunProgress& progress) {
-  ScenarioSpec spec = spec_in;
-  if (options.duration_s > 0.0) spec.duration_s = options.duration_s;
-  const std::string who = "scenario '" + spec.name + "': ";
-  HWR_RETURN_IF_ERROR(validate_scenario(spec));
-  auto traj_or = Trajectory::build(spec.trajectory);
-  if (!traj_or.ok()) return core::InvalidArgument(who + traj_or.status().message());
-  const Trajectory& traj = traj_or.value();
-  const double duration = scenario_run_duration_s(spec, traj);
+  auto run_or = prepare_sim_run(spec_in, options.duration_s);
+  if (!run_or.ok()) return run_or.status();
+  const SimRunSetup& run = run_or.value();
+  const ScenarioSpec& spec = run.spec;
   if (options.out_dir.empty()) return core::InvalidArgument("no output folder given");
   const std::string& out = options.out_dir;
 
@@ -205,61 +188,45 @@ core::Expected<RunSummary> write_run(const ScenarioSpec& spec_in, const RunOptio
   }
   std::unique_ptr<Renderer> renderer;
   if (options.write_images) {
-    auto r = Renderer::create(spec.scene);
-    if (!r.ok()) return core::InvalidArgument(who + r.status().message());
+    auto r = create_sim_renderer(run);
+    if (!r.ok()) return r.status();
     renderer = std::move(r.value());
     HWR_RETURN_IF_ERROR(make_dir(out + "/rgb"));
     HWR_RETURN_IF_ERROR(make_dir(out + "/depth"));
     if (spec.camera.stereo) HWR_RETURN_IF_ERROR(make_dir(out + "/right"));
   }
 
-  const int64_t t0 = spec.start_time_ns;
-  const Eigen::Isometry3d T_scene_world = world_frame_from_first_imu_pose(traj.evaluate(0.0).T_scene_imu);
-  const Eigen::Isometry3d T_world_scene = T_scene_world.inverse();
-  const Eigen::Isometry3d T_imu_cam = camera_T_imu_cam(spec.camera);
-
+  const int64_t t0 = run.t0_ns;
   RunSummary sum;
   sum.scenario = spec.name;
   sum.out_dir = out;
-  sum.simulated_s = duration;
-  sum.path_length_m = traj.evaluate(duration).distance_m;
+  sum.simulated_s = run.duration_s;
+  sum.path_length_m = run.trajectory.evaluate(run.duration_s).distance_m;
   sum.joints = spec.scene.joints.size();
 
   // Sensor streams and ground truth.
-  const std::vector<ImuRecord> imu = synthesize_imu(traj, spec.imu, spec.seed, duration, t0);
-  std::vector<GroundTruthRow> gt(imu.size());
-  std::vector<core::StampedPose> gt_cam(imu.size());
-  for (size_t k = 0; k < imu.size(); ++k) {
-    const TrajectoryState st = traj.evaluate(core::ns_to_s(imu[k].sample.t_ns - t0));
-    gt[k].t_ns = imu[k].sample.t_ns;
-    gt[k].T_world_imu = T_world_scene * st.T_scene_imu;
-    gt[k].v_world_mps = T_world_scene.linear() * st.v_scene_mps;
-    gt_cam[k].t_ns = gt[k].t_ns;
-    gt_cam[k].T_world_body = gt[k].T_world_imu * T_imu_cam;
-  }
-  sum.imu_samples = imu.size();
-  HWR_RETURN_IF_ERROR(text::write_file_atomic(out + "/imu.csv", imu_csv(imu)));
-  HWR_RETURN_IF_ERROR(text::write_file_atomic(out + "/imu_state_groundtruth.csv", state_csv(gt, imu)));
-  HWR_RETURN_IF_ERROR(core::write_tum_trajectory(out + "/groundtruth.txt", gt_cam,
+  const SimStreams streams = synthesize_sim_streams(run);
+  sum.imu_samples = streams.imu.size();
+  HWR_RETURN_IF_ERROR(text::write_file_atomic(out + "/imu.csv", imu_csv(streams.imu)));
+  HWR_RETURN_IF_ERROR(text::write_file_atomic(out + "/imu_state_groundtruth.csv",
+                                              state_csv(streams.groundtruth_imu, streams.imu)));
+  HWR_RETURN_IF_ERROR(core::write_tum_trajectory(out + "/groundtruth.txt", streams.groundtruth_T_world_cam,
                                                  "hwr-sim " + spec.name + ": T_world_cam at the IMU rate"));
   sum.files = {"imu.csv", "imu_state_groundtruth.csv", "groundtruth.txt"};
   if (spec.mag.enabled) {
-    const std::vector<MagDipole> dipoles = mag_dipoles_for_scene(spec.scene, spec.mag, spec.seed);
-    const std::vector<hal::MagSample> mag = synthesize_mag(traj, spec.mag, dipoles, spec.seed, duration, t0);
-    sum.mag_samples = mag.size();
-    HWR_RETURN_IF_ERROR(text::write_file_atomic(out + "/mag.csv", mag_csv(mag)));
+    sum.mag_samples = streams.mag.size();
+    HWR_RETURN_IF_ERROR(text::write_file_atomic(out + "/mag.csv", mag_csv(streams.mag)));
     sum.files.push_back("mag.csv");
   }
   if (spec.gnss.enabled) {
-    const std::vector<GnssRecord> gnss = synthesize_gnss(traj, spec.gnss, spec.seed, duration, t0);
-    sum.gnss_samples = gnss.size();
-    HWR_RETURN_IF_ERROR(text::write_file_atomic(out + "/gnss.csv", gnss_csv(gnss)));
+    sum.gnss_samples = streams.gnss.size();
+    HWR_RETURN_IF_ERROR(text::write_file_atomic(out + "/gnss.csv", gnss_csv(streams.gnss)));
     sum.files.push_back("gnss.csv");
   }
   HWR_RETURN_IF_ERROR(
-      save_sim_calibration(out + "/calibration.yaml", make_sim_calibration(spec, T_scene_world)));
+      save_sim_calibration(out + "/calibration.yaml", make_sim_calibration(spec, run.T_scene_world)));
   HWR_RETURN_IF_ERROR(
-      text::write_file_atomic(out + "/weld_groundtruth.yaml", weld_yaml(spec, T_world_scene)));
+      text::write_file_atomic(out + "/weld_groundtruth.yaml", weld_yaml(spec, run.T_world_scene)));
   HWR_RETURN_IF_ERROR(text::write_file_atomic(out + "/scenario_resolved.yaml", scenario_to_yaml(spec)));
   sum.files.insert(sum.files.end(), {"calibration.yaml", "weld_groundtruth.yaml", "scenario_resolved.yaml"});
 
@@ -269,39 +236,25 @@ core::Expected<RunSummary> write_run(const ScenarioSpec& spec_in, const RunOptio
   }
 
   // Frames: workers take frame indices in turn; each frame's noise depends only on (seed, k).
-  const std::vector<int64_t> offsets = sample_offsets_ns(spec.camera.rate_hz, duration);
-  const size_t n_frames = offsets.size();
+  const size_t n_frames = run.frame_offsets_ns.size();
   std::vector<std::string> stamps(n_frames);
-  for (size_t k = 0; k < n_frames; ++k) stamps[k] = core::format_timestamp_s(t0 + offsets[k], 6);
-  const Eigen::Isometry3d T_cam_right = camera_T_cam_right(spec.camera);
+  for (size_t k = 0; k < n_frames; ++k) stamps[k] = core::format_timestamp_s(t0 + run.frame_offsets_ns[k], 6);
   std::atomic<size_t> next{0}, done{0};
   std::atomic<bool> failed{false};
   core::Status first_error;
   std::mutex error_mutex;
 
   auto worker = [&]() {
-    cv::Mat bgr, depth, depth16, right_bgr, right_depth, gray;
+    cv::Mat bgr, depth, depth16, right_bgr, gray;
     std::vector<unsigned char> png;
     for (;;) {
       const size_t k = next.fetch_add(1);
       if (k >= n_frames || failed.load()) return;
-      const double t_s = core::ns_to_s(offsets[k]);
-      const Eigen::Isometry3d T_scene_cam = traj.evaluate(t_s).T_scene_imu * T_imu_cam;
-      renderer->render(T_scene_cam, spec.camera.intrinsics, spec.render, &bgr, &depth);
-      apply_depth_noise(spec.depth_noise, derive_seed(spec.seed, RandomStream::kDepthNoise, k), &depth);
-      ExposureSpec exposure = spec.exposure;
-      exposure.gain = exposure_gain_at(spec, t_s);
-      apply_exposure(exposure, derive_seed(spec.seed, RandomStream::kExposure, k), &bgr);
+      render_sim_frame(run, *renderer, k, &bgr, &depth, &right_bgr, &gray);
       depth_to_u16(depth, spec.camera.depth_scale, &depth16);
       core::Status st = write_png(out + "/rgb/" + stamps[k] + ".png", bgr, &png);
       if (st.ok()) st = write_png(out + "/depth/" + stamps[k] + ".png", depth16, &png);
-      if (st.ok() && spec.camera.stereo) {
-        renderer->render(T_scene_cam * T_cam_right, spec.camera.intrinsics, spec.render, &right_bgr,
-                         &right_depth);
-        apply_exposure(exposure, derive_seed(spec.seed, RandomStream::kExposureRight, k), &right_bgr);
-        cv::cvtColor(right_bgr, gray, cv::COLOR_BGR2GRAY);
-        st = write_png(out + "/right/" + stamps[k] + ".png", gray, &png);
-      }
+      if (st.ok() && spec.camera.stereo) st = write_png(out + "/right/" + stamps[k] + ".png", gray, &png);
       if (!st.ok()) {
         std::lock_guard<std::mutex> lock(error_mutex);
         if (first_error.ok()) first_error = st;

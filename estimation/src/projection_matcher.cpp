@@ -1,0 +1,76 @@
+#include "hwr/estimation/projection_matcher.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include "hwr/estimation/descriptor.hpp"
+
+namespace hwr::estimation {
+
+ProjectionMatcher::ProjectionMatcher(int max_points, int max_features)
+    : max_points_(std::max(max_points, 0)),
+      max_features_(std::max(max_features, 0)),
+      candidates_(static_cast<size_t>(std::max(max_features, 1))),
+      owner_(static_cast<size_t>(std::max(max_features, 1)), -1),
+      owner_d_(static_cast<size_t>(std::max(max_features, 1)), 256) {}
+
+int ProjectionMatcher::match(const MapPointRef* points, int n, const Eigen::Isometry3d& T_cam_world,
+                             const hal::PinholeIntrinsics& K, const FrameFeatures& frame,
+                             const ProjectionMatchConfig& cfg, FeatureMatch* out, int max_out) {
+  const int n_points = std::min(n, max_points_);
+  const int n_features = std::min(frame.size(), max_features_);
+  std::fill(owner_.begin(), owner_.begin() + n_features, -1);
+  std::fill(owner_d_.begin(), owner_d_.begin() + n_features, 256);
+  const Eigen::Matrix3d R = T_cam_world.linear();
+  const Eigen::Vector3d t = T_cam_world.translation();
+  const float w = static_cast<float>(K.width), h = static_cast<float>(K.height);
+  const int last_octave = static_cast<int>(frame.scale_per_octave.size()) - 1;
+
+  for (int i = 0; i < n_points; ++i) {
+    const MapPointRef& mp = points[i];
+    if (mp.descriptor == nullptr) continue;
+    const Eigen::Vector3d p_cam = R * mp.p_world + t;
+    if (!(p_cam.z() > cfg.min_depth_m)) continue;
+    // Pinhole projection (the inverse of eq. 3).
+    const float u = static_cast<float>(K.fx * p_cam.x() / p_cam.z() + K.cx);
+    const float v = static_cast<float>(K.fy * p_cam.y() / p_cam.z() + K.cy);
+    if (!(u >= 0 && v >= 0 && u < w && v < h)) continue;
+    int min_oct = -1, max_oct = -1;
+    float radius = cfg.radius_px;
+    if (mp.octave_hint >= 0) {
+      radius *= frame.scale(mp.octave_hint);
+      min_oct = std::max(0, mp.octave_hint - cfg.octave_window);
+      max_oct = std::min(std::max(last_octave, 0), mp.octave_hint + cfg.octave_window);
+    }
+    const int nc = frame.features_in_radius(u, v, radius, min_oct, max_oct, candidates_.data(),
+                                            static_cast<int>(candidates_.size()));
+    int best = 257, second = 257, best_j = -1;
+    for (int k = 0; k < nc; ++k) {
+      const int j = candidates_[static_cast<size_t>(k)];
+      if (j >= n_features) continue;
+      const int d = hamming_distance(mp.descriptor, frame.descriptor(j));
+      if (d < best) {
+        second = best;
+        best = d;
+        best_j = j;
+      } else if (d < second) {
+        second = d;
+      }
+    }
+    if (best_j < 0 || best > cfg.max_distance) continue;
+    if (second <= 256 && static_cast<float>(best) >= cfg.ratio * static_cast<float>(second)) continue;
+    if (best < owner_d_[static_cast<size_t>(best_j)]) {
+      owner_[static_cast<size_t>(best_j)] = i;
+      owner_d_[static_cast<size_t>(best_j)] = best;
+    }
+  }
+
+  int count = 0;
+  for (int j = 0; j < n_features && count < max_out; ++j) {
+    if (owner_[static_cast<size_t>(j)] < 0) continue;
+    out[count++] = {owner_[static_cast<size_t>(j)], j, owner_d_[static_cast<size_t>(j)]};
+  }
+  return count;
+}
+
+}  // namespace hwr::estimation
