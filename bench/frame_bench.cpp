@@ -72,7 +72,8 @@ core::Expected<Sequence> open_sequence(const std::string& name, double duration_
 double percentile(std::vector<double> v, double q) {
   if (v.empty()) return 0;
   std::sort(v.begin(), v.end());
-  const size_t k = std::min(v.size() - 1, static_cast<size_t>(std::ceil(q * static_cast<double>(v.size())) - 1));
+  const size_t k =
+      std::min(v.size() - 1, static_cast<size_t>(std::ceil(q * static_cast<double>(v.size())) - 1));
   return v[k];
 }
 
@@ -121,8 +122,8 @@ int run_frame(int argc, char** argv) {
   std::vector<double> all_ms, all_ba_ms;
   uint64_t steady_allocs = 0, steady_orb_allocs = 0, steady_frames = 0;
   std::vector<std::string> keys;
-  std::printf("%-9s %-16s %6s %6s %10s %9s %9s %9s %8s %9s\n", "sequence", "method", "frames", "lost", "ATE [m]",
-              "ATE [%]", "mean ms", "p99 ms", "allocs*", "BA ms/kf");
+  std::printf("%-9s %-16s %6s %6s %10s %9s %9s %9s %8s %9s\n", "sequence", "method", "frames", "lost",
+              "ATE [m]", "ATE [%]", "mean ms", "p99 ms", "allocs*", "BA ms/kf");
   for (const std::string& name : names) {
     auto seq = open_sequence(name, duration_s);
     if (!seq.ok()) {
@@ -188,8 +189,8 @@ int run_frame(int argc, char** argv) {
     const double ate_pct = seq->path_length_m > 0 ? 100.0 * ate / seq->path_length_m : NAN;
     const double allocs_pf = counted ? static_cast<double>(allocs) / static_cast<double>(counted) : 0;
     std::printf("%-9s %-16s %6zu %6llu %10.4f %9.3f %9.2f %9.2f %8.1f %9.1f\n", name.c_str(), "hwr (ours)",
-                run->frames, static_cast<unsigned long long>(run->counters.tracker.lost), ate, ate_pct, mean(ms),
-                percentile(ms, 0.99), allocs_pf, mean(ba_ms));
+                run->frames, static_cast<unsigned long long>(run->counters.tracker.lost), ate, ate_pct,
+                mean(ms), percentile(ms, 0.99), allocs_pf, mean(ba_ms));
     char line[256];
     std::snprintf(line, sizeof(line), "ate_m_%s=%.5f", name.c_str(), ate);
     keys.push_back(line);
@@ -239,8 +240,9 @@ int run_frame(int argc, char** argv) {
   // stage) is counted apart: it is the one stage that still allocates.
   std::printf("allocs_per_frame=%.2f\n",
               steady_frames ? static_cast<double>(steady_allocs) / static_cast<double>(steady_frames) : 0.0);
-  std::printf("allocs_per_frame_opencv_orb=%.2f\n",
-              steady_frames ? static_cast<double>(steady_orb_allocs) / static_cast<double>(steady_frames) : 0.0);
+  std::printf(
+      "allocs_per_frame_opencv_orb=%.2f\n",
+      steady_frames ? static_cast<double>(steady_orb_allocs) / static_cast<double>(steady_frames) : 0.0);
   return 0;
 }
 

@@ -72,8 +72,8 @@ core::Expected<LocalBaReport> LocalBundleAdjustment::run_once(KeyframeStore* key
   if (keyframes->size() < 2) return report;
 
   const int newest = keyframes->newest_id();
-  const int first = full ? keyframes->oldest_id()
-                         : std::max(keyframes->oldest_id(), newest - config_.window_keyframes + 1);
+  const int first =
+      full ? keyframes->oldest_id() : std::max(keyframes->oldest_id(), newest - config_.window_keyframes + 1);
   const size_t max_points = full ? point_to_ba_.size() : static_cast<size_t>(config_.max_points);
   BaIntrinsics intrinsics{};
   intrinsics.fx = K.fx;

@@ -9,19 +9,21 @@ namespace hwr::estimation {
 
 core::Expected<OfflineRun> run_offline(const hal::ReplayLog& log, const OfflineRunOptions& options) {
   if (!log.load_frame) return core::InvalidArgument("run_offline: the log has no frame loader");
-  if (!log.info.intrinsics.valid()) return core::InvalidArgument("run_offline: the log has no camera intrinsics");
+  if (!log.info.intrinsics.valid())
+    return core::InvalidArgument("run_offline: the log has no camera intrinsics");
   auto estimator = std::make_unique<PoseEstimator>(options.estimator, log.info);
   if (options.on_start) options.on_start(*estimator);
   OfflineRun out;
   hal::RgbdFrame frame;
   frame.bgr.create(log.info.intrinsics.height, log.info.intrinsics.width, CV_8UC3);
   frame.depth_m.create(log.info.intrinsics.height, log.info.intrinsics.width, CV_32FC1);
-  if (log.info.stereo) frame.right_gray.create(log.info.intrinsics.height, log.info.intrinsics.width, CV_8UC1);
+  if (log.info.stereo)
+    frame.right_gray.create(log.info.intrinsics.height, log.info.intrinsics.width, CV_8UC1);
   // The same hold-back as hwr-robot's inertial task.
   constexpr int64_t kHoldbackNs = 60'000'000;
   size_t next_imu = 0, next_mag = 0;
-  const size_t n_frames = options.max_frames > 0 ? std::min(options.max_frames, log.frame_t_ns.size())
-                                                 : log.frame_t_ns.size();
+  const size_t n_frames =
+      options.max_frames > 0 ? std::min(options.max_frames, log.frame_t_ns.size()) : log.frame_t_ns.size();
   for (size_t i = 0; i < n_frames; ++i) {
     const int64_t t = log.frame_t_ns[i];
     // Everything a source would have delivered by the frame's time (plus one IMU period).

@@ -149,7 +149,8 @@ const TrackResult& PoseEstimator::process_frame(const hal::RgbdFrame& frame) {
   if (last_.state != TrackState::kWaiting && records_.size() < records_.capacity()) {
     const int ref = tracker_.keyframes().newest_id();
     const Eigen::Isometry3d T_kf_cam = tracker_.keyframes().pose(ref).inverse() * last_.T_world_cam;
-    records_.push_back({frame.t_ns, ref, Eigen::Quaterniond(T_kf_cam.linear()).normalized(), T_kf_cam.translation()});
+    records_.push_back(
+        {frame.t_ns, ref, Eigen::Quaterniond(T_kf_cam.linear()).normalized(), T_kf_cam.translation()});
   }
   if (last_.keyframe) local_ba_due_ = true;  // the mapping task's work: triangulation, local BA
 

@@ -130,8 +130,8 @@ TrackResult VisualTracker::track(const hal::RgbdFrame& frame, const Eigen::Isome
 
   t0 = now_ns();
   const int n_local = collect_local_map();
-  int n_matches = projection_.match(local_refs_.data(), n_local, T_cam_world_pred, K_, current_, config_.match,
-                                    matches_.data(), static_cast<int>(matches_.size()));
+  int n_matches = projection_.match(local_refs_.data(), n_local, T_cam_world_pred, K_, current_,
+                                    config_.match, matches_.data(), static_cast<int>(matches_.size()));
   if (n_matches < config_.min_matches * 2) {
     ProjectionMatchConfig wide = config_.match;
     wide.radius_px *= config_.wide_radius_factor;
@@ -273,13 +273,15 @@ bool VisualTracker::estimate_pose(int n_matches, const Eigen::Isometry3d& T_cam_
     // (the refinement's rounds drop outliers), as ORB-SLAM's tracking with a motion model does;
     // RANSAC only when that leaves too few inliers.
     std::fill(inlier_mask_.begin(), inlier_mask_.begin() + n, uint8_t{1});
-    *out = refiner_.refine(correspondences_.data(), n, K_, T_cam_world_guess, config_.refine, inlier_mask_.data());
+    *out = refiner_.refine(correspondences_.data(), n, K_, T_cam_world_guess, config_.refine,
+                           inlier_mask_.data());
     if (out->ok && out->inliers >= config_.min_inliers &&
         out->inliers >= config_.min_inlier_ratio_without_ransac * n) {
       return true;
     }
   }
-  const PoseRansacResult rs = ransac_.solve(correspondences_.data(), n, K_, config_.ransac, inlier_mask_.data());
+  const PoseRansacResult rs =
+      ransac_.solve(correspondences_.data(), n, K_, config_.ransac, inlier_mask_.data());
   if (!rs.ok) return false;
   ++counters_.ransac_runs;
   *out = refiner_.refine(correspondences_.data(), n, K_, rs.T_cam_world, config_.refine, inlier_mask_.data());
@@ -333,11 +335,13 @@ void VisualTracker::insert_keyframe(const hal::RgbdFrame& frame, const Eigen::Is
   evict_oldest_if_full();
   Keyframe* kf = keyframes_.insert(frame.t_ns, T_world_cam);
   if (kf == nullptr) {
-    HWR_LOG_WARN("estimation", "keyframe ids exhausted (max_total %d); no new keyframes", keyframes_.config().max_total);
+    HWR_LOG_WARN("estimation", "keyframe ids exhausted (max_total %d); no new keyframes",
+                 keyframes_.config().max_total);
     return;
   }
   ++counters_.keyframes;
-  for (int i = 0; i < current_.size(); ++i) kf->features.push_back(current_.feature(i), current_.descriptor(i));
+  for (int i = 0; i < current_.size(); ++i)
+    kf->features.push_back(current_.feature(i), current_.descriptor(i));
   keyframes_.store_images(kf->id, frame.bgr, frame.depth_m);
 
   // Observations of tracked map points (the inliers of the last refinement; features were copied
@@ -406,9 +410,9 @@ void VisualTracker::triangulate_with_previous(Keyframe* kf) {
       continue;
     }
     Eigen::Vector3d p_world;
-    const TriangulationStatus ts = triangulate_two_view(T_cam0_world, T_cam1_world, K_, K_,
-                                                        Eigen::Vector2d(f0.u_px, f0.v_px), uv1,
-                                                        config_.triangulation, &p_world);
+    const TriangulationStatus ts =
+        triangulate_two_view(T_cam0_world, T_cam1_world, K_, K_, Eigen::Vector2d(f0.u_px, f0.v_px), uv1,
+                             config_.triangulation, &p_world);
     if (ts != TriangulationStatus::kOk) continue;
     const MapPointHandle h = points_.create(p_world, kf->features.descriptor(m.query), kf->id, f1.octave);
     if (!h.valid()) return;

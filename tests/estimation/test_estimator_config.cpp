@@ -37,7 +37,8 @@ TEST(EstimatorConfig, GivenTheShippedFileWhenLoadedThenItEqualsTheBuiltInDefault
 }
 
 TEST(EstimatorConfig, GivenKeyframeThresholdsWhenSetThenTheyAreUsed) {
-  const std::string path = write_temp("estimation:\n  keyframes:\n    translation_m: 0.5\n    rotation_rad: 0.1\n");
+  const std::string path =
+      write_temp("estimation:\n  keyframes:\n    translation_m: 0.5\n    rotation_rad: 0.1\n");
   auto c = load_estimator_config(path);
   std::remove(path.c_str());
   ASSERT_TRUE(c.ok()) << c.status().message();

@@ -99,7 +99,8 @@ TEST(LocalBundleAdjustment, GivenAPerturbedWindowWhenAdjustedThenPosesAndPointsR
     for (int k = 0; k < 6; ++k) xi[k] = (k < 3 ? 0.02 : 0.01) * n(rng);
     s.keyframes.get(id)->T_world_cam = s.keyframes.get(id)->T_world_cam * core::se3_exp(xi);
   }
-  for (const MapPointHandle& h : s.handles) s.points.get(h)->p_world_m += 0.03 * Eigen::Vector3d(n(rng), n(rng), n(rng));
+  for (const MapPointHandle& h : s.handles)
+    s.points.get(h)->p_world_m += 0.03 * Eigen::Vector3d(n(rng), n(rng), n(rng));
 
   LocalBaConfig cfg;
   cfg.window_keyframes = 8;
@@ -108,12 +109,13 @@ TEST(LocalBundleAdjustment, GivenAPerturbedWindowWhenAdjustedThenPosesAndPointsR
   LocalBundleAdjustment ba(cfg, s.points.capacity());
   auto report = ba.run(&s.keyframes, &s.points, K);
   ASSERT_TRUE(report.ok()) << report.status().message();
-  EXPECT_EQ(report->cameras, 12);        // 8 in the window + the 4 older ones that see its points
-  EXPECT_EQ(report->fixed_cameras, 5);   // the 4 older ones + the window's oldest
+  EXPECT_EQ(report->cameras, 12);       // 8 in the window + the 4 older ones that see its points
+  EXPECT_EQ(report->fixed_cameras, 5);  // the 4 older ones + the window's oldest
   EXPECT_EQ(report->observations_removed, 0);
   EXPECT_LT(report->summary.final_cost, 1e-6 * report->summary.initial_cost);
   for (int id = 0; id < 12; ++id) {
-    const Eigen::Isometry3d d = w.T_world_cam[static_cast<size_t>(id)].inverse() * s.keyframes.get(id)->T_world_cam;
+    const Eigen::Isometry3d d =
+        w.T_world_cam[static_cast<size_t>(id)].inverse() * s.keyframes.get(id)->T_world_cam;
     EXPECT_LT(d.translation().norm(), 1e-5) << "keyframe " << id;
     EXPECT_LT(Eigen::AngleAxisd(d.linear()).angle(), 1e-6) << "keyframe " << id;
   }
@@ -134,7 +136,8 @@ TEST(LocalBundleAdjustment, GivenGrossOutlierObservationsWhenAdjustedThenTheyAre
   // Move 10 observations of the newest keyframe by 40 px.
   Keyframe* kf = s.keyframes.get(7);
   int moved = 0;
-  for (int f = 0; f < kf->features.size() && moved < 10; f += 7, ++moved) kf->features.feature(f).u_px += 40.f;
+  for (int f = 0; f < kf->features.size() && moved < 10; f += 7, ++moved)
+    kf->features.feature(f).u_px += 40.f;
   LocalBaConfig cfg;
   cfg.window_keyframes = 8;
   LocalBundleAdjustment ba(cfg, s.points.capacity());
@@ -142,11 +145,13 @@ TEST(LocalBundleAdjustment, GivenGrossOutlierObservationsWhenAdjustedThenTheyAre
   ASSERT_TRUE(report.ok()) << report.status().message();
   EXPECT_EQ(report->observations_removed, 10);
   int invalid = 0;
-  for (int f = 0; f < kf->features.size(); f += 7) invalid += kf->points[static_cast<size_t>(f)].valid() ? 0 : 1;
+  for (int f = 0; f < kf->features.size(); f += 7)
+    invalid += kf->points[static_cast<size_t>(f)].valid() ? 0 : 1;
   EXPECT_EQ(invalid, 10);
   // The outliers did not pull the poses (Huber): still at the truth to well under a millimetre.
   for (int id = 0; id < 8; ++id) {
-    const Eigen::Isometry3d d = w.T_world_cam[static_cast<size_t>(id)].inverse() * s.keyframes.get(id)->T_world_cam;
+    const Eigen::Isometry3d d =
+        w.T_world_cam[static_cast<size_t>(id)].inverse() * s.keyframes.get(id)->T_world_cam;
     EXPECT_LT(d.translation().norm(), 5e-4) << "keyframe " << id;
   }
 }

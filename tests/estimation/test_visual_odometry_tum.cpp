@@ -88,8 +88,8 @@ TEST(VisualOdometryTum, GivenSteadyStateWhenTrackingThenOnlyOpenCvOrbAllocates) 
   }
   EXPECT_GT(steady, 100u);
   EXPECT_EQ(frames_with_allocations, 0u);
-  std::printf("[ info ] %zu steady-state frames; OpenCV ORB allocates %.1f times per frame, the rest 0\n", steady,
-              static_cast<double>(orb_total) / static_cast<double>(steady));
+  std::printf("[ info ] %zu steady-state frames; OpenCV ORB allocates %.1f times per frame, the rest 0\n",
+              steady, static_cast<double>(orb_total) / static_cast<double>(steady));
 }
 
 }  // namespace

@@ -27,9 +27,9 @@ struct Keyframe {
 };
 
 struct KeyframeStoreConfig {
-  int capacity = 1024;       // keyframes in the ring (bundle adjustment, recovery, revisits)
-  int image_slots = 8;       // keyframes whose images are kept for reconstruction
-  int max_total = 100'000;   // keyframe ids whose pose is archived (the whole run)
+  int capacity = 1024;      // keyframes in the ring (bundle adjustment, recovery, revisits)
+  int image_slots = 8;      // keyframes whose images are kept for reconstruction
+  int max_total = 100'000;  // keyframe ids whose pose is archived (the whole run)
   int feature_capacity = 1000;
   int width = 640, height = 480;
 };

@@ -25,9 +25,9 @@ struct LocalBaConfig {
   int fixed_keyframes = 8;  // older keyframes observing window points, held fixed
   int max_points = 12'000;
   int max_observations = 120'000;
-  BaOptions options;                 // max_iterations etc.
-  double outlier_chi2 = 5.991;       // 2-dof 95 %: observations above this (in sigma²) are dropped
-  double max_depth_m = 40.0;         // points behind the camera or beyond this are dropped
+  BaOptions options;            // max_iterations etc.
+  double outlier_chi2 = 5.991;  // 2-dof 95 %: observations above this (in sigma²) are dropped
+  double max_depth_m = 40.0;    // points behind the camera or beyond this are dropped
 };
 
 struct LocalBaReport {

@@ -43,7 +43,8 @@ class MapPointStore {
   int capacity() const { return static_cast<int>(points_.size()); }
   int alive() const { return alive_; }
   // A new point, or an invalid handle when the pool is full (counted in exhausted()).
-  MapPointHandle create(const Eigen::Vector3d& p_world_m, const uint8_t* descriptor, int keyframe_id, int octave);
+  MapPointHandle create(const Eigen::Vector3d& p_world_m, const uint8_t* descriptor, int keyframe_id,
+                        int octave);
   void remove(MapPointHandle h);
   // nullptr for a stale or invalid handle.
   MapPoint* get(MapPointHandle h);

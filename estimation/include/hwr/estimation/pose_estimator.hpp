@@ -42,9 +42,9 @@ struct PoseEstimatorConfig {
   bool use_imu = true;  // when the source has one
   ImuNoise imu_noise;
   StaticInitConfig static_init;
-  int pose_history_capacity = 1600;   // IMU-rate states kept for interpolation (8 s at 200 Hz)
-  int imu_queue_capacity = 2048;      // samples waiting for their frame
-  int max_frames = 216'000;           // trajectory records (2 h at 30 Hz)
+  int pose_history_capacity = 1600;  // IMU-rate states kept for interpolation (8 s at 200 Hz)
+  int imu_queue_capacity = 2048;     // samples waiting for their frame
+  int max_frames = 216'000;          // trajectory records (2 h at 30 Hz)
   // Visual pose updates: the refiner's covariance, inflated by this factor (the map's own error
   // is not in it) and floored.
   double visual_cov_inflation = 4.0;

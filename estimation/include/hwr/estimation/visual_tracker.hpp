@@ -36,9 +36,9 @@ struct TrackerConfig {
   int local_map_keyframes = 12;   // the newest keyframes whose points form the local map
   int max_local_points = 12'000;  // projected per frame
   ProjectionMatchConfig match;
-  float wide_radius_factor = 3.0f;     // second projection pass when the first finds too few
-  float refine_radius_px = 4.0f;       // rematch pass around the refined pose ...
-  int rematch_refine_rounds = 2;       // ... and its refinement's outlier-rejection rounds
+  float wide_radius_factor = 3.0f;  // second projection pass when the first finds too few
+  float refine_radius_px = 4.0f;    // rematch pass around the refined pose ...
+  int rematch_refine_rounds = 2;    // ... and its refinement's outlier-rejection rounds
   PoseRansacConfig ransac;
   RefineConfig refine;
   int min_matches = 20;
@@ -93,7 +93,7 @@ struct TrackerCounters {
   uint64_t points_from_depth = 0;
   uint64_t points_triangulated = 0;
   uint64_t points_culled = 0;
-  uint64_t bad_frames = 0;  // wrong image type/size
+  uint64_t bad_frames = 0;   // wrong image type/size
   uint64_t ransac_runs = 0;  // frames whose pose needed RANSAC (prediction not good enough)
 };
 
@@ -128,7 +128,8 @@ class VisualTracker {
   }
   // Bundle adjustment moved the newest keyframe: the last tracked pose moves with it, so the next
   // prediction starts from the refined map.
-  void on_keyframe_moved(const Eigen::Isometry3d& T_world_kf_before, const Eigen::Isometry3d& T_world_kf_after);
+  void on_keyframe_moved(const Eigen::Isometry3d& T_world_kf_before,
+                         const Eigen::Isometry3d& T_world_kf_after);
 
  private:
   int collect_local_map();
