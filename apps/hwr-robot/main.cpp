@@ -296,9 +296,11 @@ int run(const Args& args) {
                                           : info.last_t_ns + hwr::core::kNsPerS / 10;
   const int64_t wall0 = exec_clock.now_ns();
   hwr::core::Status st = sched.run_until(end);
-  // Hand the last samples to the pipeline.
-  inertial_task(&robot, end + kImuHoldbackNs);
+  // Hand the last samples to the pipeline: frames first (their IMU samples are queued), then the
+  // rest of the IMU queue.
+  inertial_task(&robot, end);
   camera_task(&robot, end);
+  estimator->advance_imu(end + kImuHoldbackNs);
   if (robot.estimator->local_ba_due()) mapping_task(&robot, end);
   const double wall_s = hwr::core::ns_to_s(exec_clock.now_ns() - wall0);
   if (!st.ok()) robot.error = st;
@@ -338,9 +340,12 @@ int run(const Args& args) {
   }
   const auto e = estimator->counters();
   std::printf("estimation: mode=%s frames=%" PRIu64 " tracked=%" PRIu64 " recovered=%" PRIu64 " lost=%" PRIu64
-              " waiting=%" PRIu64 " bad_frames=%" PRIu64 "\n",
+              " waiting=%" PRIu64 " bad_frames=%" PRIu64 " late_for_filter=%" PRIu64 " ahead_of_imu=%" PRIu64
+              " point_pool_full=%" PRIu64 " keyframes_refused=%" PRIu64 "\n",
               e.visual_only ? "visual-only" : "visual-inertial", e.tracker.frames, e.tracker.tracked,
-              e.tracker.recovered, e.tracker.lost, e.frames_waiting_for_init, e.tracker.bad_frames);
+              e.tracker.recovered, e.tracker.lost, e.frames_waiting_for_init, e.tracker.bad_frames,
+              e.frames_late_for_filter, e.frames_ahead_of_imu, e.tracker.point_pool_exhausted,
+              e.tracker.keyframes_refused);
   std::printf("estimation: keyframes=%" PRIu64 " points=%d (depth %" PRIu64 ", triangulated %" PRIu64
               ", culled %" PRIu64 ") local_ba=%" PRIu64 " (failed %" PRIu64 ") imu_updates=%" PRIu64
               " gated=%" PRIu64 " filter_resets=%" PRIu64 "\n",
@@ -354,7 +359,9 @@ int run(const Args& args) {
         full->cameras, full->points, full->observations, full->summary.initial_cost, full->summary.final_cost,
         full->summary.iterations, full_s);
   } else {
-    std::fprintf(stderr, "hwr-robot: full bundle adjustment: %s\n", full.status().message().c_str());
+    std::fprintf(stderr,
+                 "hwr-robot: full bundle adjustment failed (%s); the trajectory is the sliding-window one\n",
+                 full.status().message().c_str());
   }
   int rc = 0;
   if (!args.traj_out.empty()) {

@@ -54,6 +54,16 @@ void read_estimator_config(core::ConfigMap map, PoseEstimatorConfig* c) {
   if (c->tracker.keyframe_translation_m <= 0) kf.record_error("translation_m", "must be > 0");
   if (c->tracker.keyframe_rotation_rad <= 0) kf.record_error("rotation_rad", "must be > 0");
   if (c->tracker.orb.max_features < 50) orb.record_error("max_features", "must be >= 50");
+  if (c->tracker.orb.levels < 1 || c->tracker.orb.levels > 16)
+    orb.record_error("levels", "must be in [1, 16]");
+  if (!(c->tracker.orb.scale_factor > 1.0f)) orb.record_error("scale_factor", "must be > 1");
+  if (c->tracker.map_point_capacity < 1000) tr.record_error("map_point_capacity", "must be >= 1000");
+  if (c->tracker.max_local_points < 100) tr.record_error("max_local_points", "must be >= 100");
+  if (c->tracker.local_map_keyframes < 1) tr.record_error("local_map_keyframes", "must be >= 1");
+  if (c->tracker.recovery_keyframes < 1) tr.record_error("recovery_keyframes", "must be >= 1");
+  if (c->tracker.min_inliers < 6 || c->tracker.min_inliers > c->tracker.min_matches) {
+    tr.record_error("min_inliers", "must be in [6, min_matches]");
+  }
   if (!(c->depth_sigma_per_m2 > 0)) map.record_error("depth_sigma_per_m2", "must be > 0");
   if (c->local_ba.window_keyframes < 2) ba.record_error("window_keyframes", "must be >= 2");
   if (c->tracker.keyframes.capacity < c->local_ba.window_keyframes + c->local_ba.fixed_keyframes) {

@@ -10,7 +10,8 @@ KeyframeStore::KeyframeStore(const KeyframeStoreConfig& config) : config_(config
   config_.max_total = std::max(config_.max_total, config_.capacity);
   ring_.reserve(static_cast<size_t>(config_.capacity));
   for (int i = 0; i < config_.capacity; ++i) {
-    ring_.emplace_back(config_.feature_capacity, config_.width, config_.height);
+    ring_.emplace_back(config_.feature_capacity, config_.width, config_.height, config_.levels,
+                       config_.scale_factor);
   }
   archive_.resize(static_cast<size_t>(config_.max_total));
   images_.resize(static_cast<size_t>(config_.image_slots));
@@ -63,7 +64,7 @@ void KeyframeStore::sync_archive(int id) {
 
 void KeyframeStore::store_images(int id, const cv::Mat& bgr, const cv::Mat& depth_m) {
   ImageSlot& s = images_[static_cast<size_t>(id % config_.image_slots)];
-  s.id = id;
+  s.id = (bgr.empty() || depth_m.empty()) ? -1 : id;  // a slot holds both images or none
   // copyTo reuses the preallocated buffers when the size and type match (no allocation).
   if (!bgr.empty()) bgr.copyTo(s.bgr);
   if (!depth_m.empty()) depth_m.copyTo(s.depth_m);

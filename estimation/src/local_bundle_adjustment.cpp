@@ -51,7 +51,7 @@ core::Expected<LocalBaReport> LocalBundleAdjustment::run(KeyframeStore* keyframe
   auto first = run_once(keyframes, points, K, full);
   if (!first.ok() || first->observations_removed == 0) return first;
   auto second = run_once(keyframes, points, K, full);
-  if (!second.ok()) return second;
+  if (!second.ok()) return first;  // the first pass's result stands (it was written back)
   second->summary.initial_cost = first->summary.initial_cost;
   second->summary.iterations += first->summary.iterations;
   second->observations_removed += first->observations_removed;
@@ -88,9 +88,10 @@ core::Expected<LocalBaReport> LocalBundleAdjustment::run_once(KeyframeStore* key
     problem_.cameras.push_back(c);
     camera_keyframe_.push_back(id);
   };
-  // Window keyframes; the oldest fixes the gauge.
-  for (int id = first; id <= newest; ++id) {
-    add_camera(id, id == first);
+  // Window keyframes; the oldest fixes the gauge. Points from the newest keyframe first, so a cap
+  // on the point count drops the oldest keyframes' points.
+  for (int id = first; id <= newest; ++id) add_camera(id, id == first);
+  for (int id = newest; id >= first; --id) {
     const Keyframe* kf = keyframes->get(id);
     for (int f = 0; f < kf->features.size() && problem_.points.size() < max_points; ++f) {
       int ba = -1;
@@ -127,7 +128,7 @@ core::Expected<LocalBaReport> LocalBundleAdjustment::run_once(KeyframeStore* key
       o.point = ba;
       o.uv_px = Eigen::Vector2d(feat.u_px, feat.v_px);
       o.depth_m = feat.depth_m > 0 ? feat.depth_m : 0.0;
-      o.sigma_px = kf->features.scale_per_octave[static_cast<size_t>(feat.octave)];
+      o.sigma_px = kf->features.scale(feat.octave);
       problem_.observations.push_back(o);
       observation_ref_.push_back({kf->id, f});
     }

@@ -22,6 +22,8 @@ namespace {
 
 PoseEstimatorConfig with_depth_noise(PoseEstimatorConfig c) {
   c.tracker.refine.depth_sigma_per_m2 = c.depth_sigma_per_m2;
+  c.tracker.refine.scale_factor = c.tracker.orb.scale_factor;
+  c.tracker.ransac.scale_factor = c.tracker.orb.scale_factor;
   c.local_ba.options.depth_sigma_per_m2 = c.depth_sigma_per_m2;
   return c;
 }
@@ -134,14 +136,27 @@ const TrackResult& PoseEstimator::process_frame(const hal::RgbdFrame& frame) {
   }
   const Eigen::Isometry3d& T_imu_cam = source_.T_imu_cam;
   Eigen::Isometry3d T_world_cam_pred = Eigen::Isometry3d::Identity();
-  const bool have_prediction = mekf_.initialized();
-  if (have_prediction) T_world_cam_pred = mekf_.state().T_world_imu() * T_imu_cam;
+  bool have_prediction = mekf_.initialized();
+  // The filter is exactly at the frame time unless the frame came late (the filter is past it:
+  // predict from the pose history) or no IMU sample after it has arrived yet (the filter is
+  // behind it: predict from the newest state). Either way the frame gives no filter update.
+  bool filter_at_frame = have_prediction && mekf_.state().t_ns == frame.t_ns;
+  if (have_prediction) {
+    if (mekf_.state().t_ns > frame.t_ns) {
+      ++counters_.frames_late_for_filter;
+      if (!history_.interpolate_camera(frame.t_ns, T_imu_cam, &T_world_cam_pred).ok())
+        have_prediction = false;
+    } else {
+      T_world_cam_pred = mekf_.state().T_world_imu() * T_imu_cam;
+      if (!filter_at_frame) ++counters_.frames_ahead_of_imu;
+    }
+  }
   timing.imu_ns = now_ns() - t_start;
 
   last_ = tracker_.track(frame, have_prediction ? &T_world_cam_pred : nullptr, T_world_cam_pred);
 
   const int64_t t_update = now_ns();
-  if (have_prediction && (last_.state == TrackState::kTracking || last_.state == TrackState::kRecovered)) {
+  if (filter_at_frame && (last_.state == TrackState::kTracking || last_.state == TrackState::kRecovered)) {
     update_filter(last_);
   }
   timing.imu_ns += now_ns() - t_update;
@@ -200,6 +215,8 @@ void PoseEstimator::update_filter(const TrackResult& r) {
       x.p_world_imu_m = T_world_imu_meas.translation();
       ImuMekf::Cov15 P = mekf_.covariance();
       P.topLeftCorner<9, 9>().setZero();
+      P.topRightCorner<9, 6>().setZero();  // the old cross-terms belong to the diverged state
+      P.bottomLeftCorner<6, 9>().setZero();
       P.topLeftCorner<6, 6>() = cov;
       P.block<3, 3>(6, 6) = Eigen::Matrix3d::Identity() * 0.1;  // (0.3 m/s)^2
       mekf_.initialize(x, P);
@@ -228,11 +245,9 @@ core::Expected<LocalBaReport> PoseEstimator::run_local_ba() {
   auto report = local_ba_.run(&kfs, &tracker_.points(), tracker_.intrinsics(), false);
   if (!timings_.empty()) timings_.back().local_ba_ns += now_ns() - t0;
   ++counters_.local_ba_runs;
-  if (!report.ok()) {
-    ++counters_.local_ba_failures;
-    return report;
-  }
+  // Poses may have been written back even when a pass failed: the tracker follows the map.
   tracker_.on_keyframe_moved(before, kfs.newest().T_world_cam);
+  if (!report.ok()) ++counters_.local_ba_failures;
   return report;
 }
 

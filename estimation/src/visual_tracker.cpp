@@ -24,6 +24,8 @@ KeyframeStoreConfig keyframe_config(const TrackerConfig& c, const hal::PinholeIn
   k.feature_capacity = c.orb.max_features;
   k.width = K.width;
   k.height = K.height;
+  k.levels = c.orb.levels;
+  k.scale_factor = c.orb.scale_factor;
   return k;
 }
 
@@ -89,6 +91,8 @@ TrackResult VisualTracker::track(const hal::RgbdFrame& frame, const Eigen::Isome
   if (!st.ok()) {
     ++counters_.bad_frames;
     result.state = initialized_ ? TrackState::kLost : TrackState::kWaiting;
+    result.T_world_cam = T_world_cam_predicted ? *T_world_cam_predicted : T_world_cam_last_;
+    if (initialized_) ++counters_.lost;
     return result;
   }
 
@@ -109,7 +113,7 @@ TrackResult VisualTracker::track(const hal::RgbdFrame& frame, const Eigen::Isome
     T_prev_last_.setIdentity();
     t_last_ns_ = frame.t_ns;
     dt_last_ns_ = 0;
-    last_keyframe_inliers_ = result.features;
+    last_keyframe_inliers_ = 0;  // the "tracking thins out" test starts with the next keyframe
     result.state = TrackState::kTracking;
     result.T_world_cam = T_world_cam_start;
     result.keyframe = true;
@@ -332,13 +336,16 @@ void VisualTracker::evict_oldest_if_full() {
 }
 
 void VisualTracker::insert_keyframe(const hal::RgbdFrame& frame, const Eigen::Isometry3d& T_world_cam) {
-  evict_oldest_if_full();
-  Keyframe* kf = keyframes_.insert(frame.t_ns, T_world_cam);
-  if (kf == nullptr) {
-    HWR_LOG_WARN("estimation", "keyframe ids exhausted (max_total %d); no new keyframes",
-                 keyframes_.config().max_total);
+  if (keyframes_.ids_exhausted()) {
+    if (counters_.keyframes_refused++ == 0) {
+      HWR_LOG_WARN("estimation", "keyframe ids exhausted (max_total %d); no new keyframes",
+                   keyframes_.config().max_total);
+    }
     return;
   }
+  evict_oldest_if_full();
+  Keyframe* kf = keyframes_.insert(frame.t_ns, T_world_cam);
+  if (kf == nullptr) return;
   ++counters_.keyframes;
   for (int i = 0; i < current_.size(); ++i)
     kf->features.push_back(current_.feature(i), current_.descriptor(i));
@@ -368,15 +375,17 @@ void VisualTracker::insert_keyframe(const hal::RgbdFrame& frame, const Eigen::Is
     ++counters_.points_from_depth;
     if (recent_points_.size() < recent_points_.capacity()) recent_points_.push_back({h, kf->id});
   }
-  pending_mapping_ = true;
 }
 
 void VisualTracker::map_new_keyframes() {
-  if (!pending_mapping_ || keyframes_.empty()) return;
-  pending_mapping_ = false;
-  Keyframe& kf = keyframes_.newest();
-  triangulate_with_previous(&kf);
-  cull_points(kf.id);
+  if (keyframes_.empty()) return;
+  // Every keyframe inserted since the last call (the camera task may add several per mapping run).
+  for (int id = std::max(last_mapped_keyframe_ + 1, keyframes_.oldest_id()); id <= keyframes_.newest_id();
+       ++id) {
+    triangulate_with_previous(keyframes_.get(id));
+    cull_points(id);
+  }
+  last_mapped_keyframe_ = keyframes_.newest_id();
 }
 
 void VisualTracker::triangulate_with_previous(Keyframe* kf) {
@@ -403,7 +412,7 @@ void VisualTracker::triangulate_with_previous(Keyframe* kf) {
       const Eigen::Vector3d p_cam = T_cam1_world * p0->p_world_m;
       if (p_cam.z() <= 0) continue;
       const Eigen::Vector2d uv(K_.fx * p_cam.x() / p_cam.z() + K_.cx, K_.fy * p_cam.y() / p_cam.z() + K_.cy);
-      const double scale = current_.scale_per_octave[static_cast<size_t>(f1.octave)];
+      const double scale = kf->features.scale(f1.octave);
       if ((uv - uv1).squaredNorm() > 5.991 * scale * scale) continue;
       h1 = h0;
       ++p0->observations;

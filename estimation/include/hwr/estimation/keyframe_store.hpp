@@ -17,8 +17,9 @@
 namespace hwr::estimation {
 
 struct Keyframe {
-  Keyframe(int feature_capacity, int width, int height)
-      : features(feature_capacity, width, height), points(static_cast<size_t>(feature_capacity)) {}
+  Keyframe(int feature_capacity, int width, int height, int levels, float scale_factor)
+      : features(feature_capacity, width, height, levels, scale_factor),
+        points(static_cast<size_t>(feature_capacity)) {}
   int32_t id = -1;
   int64_t t_ns = 0;
   Eigen::Isometry3d T_world_cam = Eigen::Isometry3d::Identity();
@@ -32,6 +33,8 @@ struct KeyframeStoreConfig {
   int max_total = 100'000;  // keyframe ids whose pose is archived (the whole run)
   int feature_capacity = 1000;
   int width = 640, height = 480;
+  int levels = 8;  // pyramid of the features (their per-octave scale table)
+  float scale_factor = 1.2f;
 };
 
 class KeyframeStore {
@@ -42,6 +45,7 @@ class KeyframeStore {
   // when max_total ids have been used. The caller fills it.
   Keyframe* insert(int64_t t_ns, const Eigen::Isometry3d& T_world_cam);
   int size() const { return size_; }
+  bool ids_exhausted() const { return next_id_ >= config_.max_total; }
   bool empty() const { return size_ == 0; }
   int newest_id() const { return next_id_ - 1; }
   int oldest_id() const { return next_id_ - size_; }

@@ -79,6 +79,8 @@ struct PoseEstimatorCounters {
   uint64_t imu_queue_overflows = 0;
   uint64_t frames_waiting_for_init = 0;
   uint64_t frames_out_of_order = 0;
+  uint64_t frames_late_for_filter = 0;  // the filter was already past the frame: no update
+  uint64_t frames_ahead_of_imu = 0;     // no IMU sample after the frame yet: no update
   uint64_t visual_updates_gated = 0;
   uint64_t filter_resets = 0;
   uint64_t local_ba_runs = 0;

@@ -93,8 +93,10 @@ struct TrackerCounters {
   uint64_t points_from_depth = 0;
   uint64_t points_triangulated = 0;
   uint64_t points_culled = 0;
-  uint64_t bad_frames = 0;   // wrong image type/size
-  uint64_t ransac_runs = 0;  // frames whose pose needed RANSAC (prediction not good enough)
+  uint64_t bad_frames = 0;            // wrong image type/size
+  uint64_t keyframes_refused = 0;     // keyframe ids exhausted (KeyframeStoreConfig::max_total)
+  uint64_t point_pool_exhausted = 0;  // new points refused: the map point pool was full
+  uint64_t ransac_runs = 0;           // frames whose pose needed RANSAC (prediction not good enough)
 };
 
 class VisualTracker {
@@ -118,7 +120,11 @@ class VisualTracker {
   const MapPointStore& points() const { return points_; }
   const hal::PinholeIntrinsics& intrinsics() const { return K_; }
   const TrackerConfig& config() const { return config_; }
-  TrackerCounters counters() const { return counters_; }
+  TrackerCounters counters() const {
+    TrackerCounters c = counters_;
+    c.point_pool_exhausted = points_.exhausted();
+    return c;
+  }
   // Instrumentation for tests and benches: called right before (begin = true) and after the ORB
   // extraction, so a caller can attribute heap allocations to it (OpenCV's ORB allocates inside).
   using StageHook = void (*)(void* user, bool begin);
@@ -173,7 +179,7 @@ class VisualTracker {
   void* extract_hook_user_ = nullptr;
 
   bool initialized_ = false;
-  bool pending_mapping_ = false;
+  int last_mapped_keyframe_ = -1;
   Eigen::Isometry3d T_world_cam_last_ = Eigen::Isometry3d::Identity();
   Eigen::Isometry3d T_prev_last_ = Eigen::Isometry3d::Identity();  // motion model: last relative motion
   int64_t t_last_ns_ = 0;
