@@ -135,21 +135,9 @@ int run_frame(int argc, char** argv) {
     // Allocations per frame of the tracking path, and of OpenCV's ORB inside it.
     std::vector<uint64_t> frame_allocs, frame_orb_allocs;
     uint64_t before = 0;
-    struct OrbCount {
-      uint64_t at_begin = 0, allocations = 0;
-    } orb;
+    core::StageAllocations orb;
     opt.on_start = [&](estimation::PoseEstimator& e) {
-      e.tracker().set_extract_hook(
-          [](void* user, bool begin) {
-            auto* c = static_cast<OrbCount*>(user);
-            const uint64_t now = core::thread_allocation_counts().allocations;
-            if (begin) {
-              c->at_begin = now;
-            } else {
-              c->allocations += now - c->at_begin;
-            }
-          },
-          &orb);
+      e.tracker().set_extract_hook(&core::StageAllocations::hook, &orb);
     };
     opt.around_track = [&](size_t, bool is_before) {
       if (is_before) {

@@ -51,20 +51,8 @@ TEST(VisualOdometryTum, GivenSteadyStateWhenTrackingThenOnlyOpenCvOrbAllocates) 
   auto log = hal::open_dataset_log("tum:" + kTeddyDir);
   ASSERT_TRUE(log.ok()) << log.status().message();
   PoseEstimator estimator(PoseEstimatorConfig{}, log->info);
-  struct OrbCount {
-    uint64_t at_begin = 0, allocations = 0;
-  } orb;
-  estimator.tracker().set_extract_hook(
-      [](void* user, bool begin) {
-        auto* c = static_cast<OrbCount*>(user);
-        const uint64_t now = core::thread_allocation_counts().allocations;
-        if (begin) {
-          c->at_begin = now;
-        } else {
-          c->allocations += now - c->at_begin;
-        }
-      },
-      &orb);
+  core::StageAllocations orb;
+  estimator.tracker().set_extract_hook(&core::StageAllocations::hook, &orb);
   hal::RgbdFrame frame;
   size_t steady = 0, frames_with_allocations = 0;
   uint64_t orb_total = 0;

@@ -40,4 +40,20 @@ class AllocationScope {
   AllocationCounts start_;
 };
 
+// Allocations made inside a stage that reports its begin and end through a hook
+// (e.g. VisualTracker::set_extract_hook(&StageAllocations::hook, &counter)), summed over calls.
+struct StageAllocations {
+  uint64_t at_begin = 0;
+  uint64_t allocations = 0;
+  static void hook(void* user, bool begin) {
+    auto* s = static_cast<StageAllocations*>(user);
+    const uint64_t now = thread_allocation_counts().allocations;
+    if (begin) {
+      s->at_begin = now;
+    } else {
+      s->allocations += now - s->at_begin;
+    }
+  }
+};
+
 }  // namespace hwr::core
