@@ -6,7 +6,10 @@
 // adjustment per keyframe (the mapping task), heap allocations per frame after warm-up, and
 // the peer's ATE and time. Table I of the paper compares per-frame time; these are our rows.
 //
-//   hwr-bench frame [--sequences teddy,lab,outdoor] [--duration S] [--no-peer]
+//   hwr-bench frame [--sequences teddy,lab,outdoor] [--duration S] [--no-peer] [--config FILE]
+//
+// --config takes hwr-robot's estimation settings (YAML, section estimation:), so a setting can be
+// benched before it becomes the default.
 
 #include <algorithm>
 #include <cmath>
@@ -20,6 +23,7 @@
 #include "bench_command.hpp"
 #include "hwr/core/alloc_counter.hpp"
 #include "hwr/core/tum_trajectory.hpp"
+#include "hwr/estimation/estimator_config.hpp"
 #include "hwr/estimation/offline_run.hpp"
 #include "hwr/estimation/trajectory_metrics.hpp"
 #include "hwr/hal/replay_source.hpp"
@@ -96,6 +100,7 @@ int run_frame(int argc, char** argv) {
   std::string sequences = "teddy,lab,outdoor";
   double duration_s = 0;
   bool peer = true;
+  estimation::PoseEstimatorConfig config;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a.rfind("--sequences=", 0) == 0) {
@@ -108,6 +113,13 @@ int run_frame(int argc, char** argv) {
       duration_s = std::atof(argv[++i]);
     } else if (a == "--no-peer") {
       peer = false;
+    } else if (a == "--config" && i + 1 < argc) {
+      auto loaded = estimation::load_estimator_config(argv[++i]);
+      if (!loaded.ok()) {
+        std::fprintf(stderr, "hwr-bench frame: --config: %s\n", loaded.status().message().c_str());
+        return 2;
+      }
+      config = loaded.value();
     } else {
       std::fprintf(stderr, "hwr-bench frame: unknown option '%s'\n", a.c_str());
       return 2;
@@ -132,6 +144,7 @@ int run_frame(int argc, char** argv) {
     }
     // Ours.
     estimation::OfflineRunOptions opt;
+    opt.estimator = config;
     // Allocations per frame of the tracking path, and of OpenCV's ORB inside it.
     std::vector<uint64_t> frame_allocs, frame_orb_allocs;
     uint64_t before = 0;
@@ -154,11 +167,18 @@ int run_frame(int argc, char** argv) {
       return 1;
     }
     std::vector<double> ms, ba_ms;
+    // Mean per stage of the tracking path (ms): imu, extract, match, pose, keyframe.
+    double stage_ms[5] = {0, 0, 0, 0, 0};
     uint64_t allocs = 0, orb_allocs = 0, counted = 0;
     for (size_t i = 0; i < run->timings.size(); ++i) {
       const auto& t = run->timings[i];
       if (t.state == estimation::TrackState::kWaiting) continue;
       ms.push_back(t.total_ns * 1e-6);
+      stage_ms[0] += t.imu_ns * 1e-6;
+      stage_ms[1] += t.track.extract_ns * 1e-6;
+      stage_ms[2] += t.track.match_ns * 1e-6;
+      stage_ms[3] += t.track.pose_ns * 1e-6;
+      stage_ms[4] += t.track.keyframe_ns * 1e-6;
       if (t.local_ba_ns > 0) ba_ms.push_back(t.local_ba_ns * 1e-6);
       // Allocations of steady-state, non-keyframe frames after warm-up.
       if (i >= kWarmupFrames && i < frame_allocs.size() && !t.keyframe) {
@@ -179,9 +199,20 @@ int run_frame(int argc, char** argv) {
     std::printf("%-9s %-16s %6zu %6llu %10.4f %9.3f %9.2f %9.2f %8.1f %9.1f\n", name.c_str(), "hwr (ours)",
                 run->frames, static_cast<unsigned long long>(run->counters.tracker.lost), ate, ate_pct,
                 mean(ms), percentile(ms, 0.99), allocs_pf, mean(ba_ms));
+    const char* stage_names[5] = {"imu", "extract", "match", "pose", "keyframe"};
+    std::printf("%-9s %-16s", "", "  stages [ms]");
+    for (int k = 0; k < 5; ++k) {
+      stage_ms[k] = ms.empty() ? 0 : stage_ms[k] / static_cast<double>(ms.size());
+      std::printf(" %s %.2f", stage_names[k], stage_ms[k]);
+    }
+    std::printf("\n");
     char line[256];
     std::snprintf(line, sizeof(line), "ate_m_%s=%.5f", name.c_str(), ate);
     keys.push_back(line);
+    for (int k = 0; k < 5; ++k) {
+      std::snprintf(line, sizeof(line), "stage_ms_%s_%s=%.3f", stage_names[k], name.c_str(), stage_ms[k]);
+      keys.push_back(line);
+    }
     if (seq->path_length_m > 0) {
       std::snprintf(line, sizeof(line), "ate_pct_%s=%.4f", name.c_str(), ate_pct);
       keys.push_back(line);
@@ -238,7 +269,7 @@ int run_frame(int argc, char** argv) {
 
 HWR_BENCH_COMMAND(frame, "frame",
                   "pose-estimation pipeline per frame (time, ATE, allocations) beside OpenCV RgbdOdometry "
-                  "[--sequences teddy,lab,outdoor] [--duration S] [--no-peer]",
+                  "[--sequences teddy,lab,outdoor] [--duration S] [--no-peer] [--config FILE]",
                   run_frame);
 
 }  // namespace hwr::bench

@@ -23,6 +23,10 @@
 #include "hwr/estimation/projection_matcher.hpp"
 #include "hwr/estimation/triangulation.hpp"
 #include "hwr/hal/tum_dataset.hpp"
+#if HWR_WITH_SIM
+#include "hwr/sim/scenario.hpp"
+#include "hwr/sim/sim_live_log.hpp"
+#endif
 
 namespace hwr::estimation {
 namespace {
@@ -91,6 +95,40 @@ void BM_FrontendGridOrbExtract(benchmark::State& state) {
   state.SetItemsProcessed(state.iterations());
 }
 BENCHMARK(BM_FrontendGridOrbExtract)->Arg(8)->Arg(6)->Arg(4)->Unit(benchmark::kMillisecond);
+
+#if HWR_WITH_SIM
+// The same on a rendered sim `lab` frame (procedural textures: many more FAST corners than teddy).
+// Arg: min_fast_threshold (the retry threshold for cells with no corner at fast_threshold).
+void BM_FrontendGridOrbExtractSimLab(benchmark::State& state) {
+  static cv::Mat gray, depth_m;
+  static hal::PinholeIntrinsics K;
+  if (gray.empty()) {
+    auto spec = sim::load_scenario("lab");
+    auto live = spec.ok() ? sim::open_sim_live_log(spec.value(), 12.0)
+                          : core::Expected<sim::SimLiveLog>(spec.status());
+    hal::RgbdFrame frame;
+    if (!live.ok() || !live->log.load_frame(300, &frame).ok()) {
+      state.SkipWithError("sim lab frame could not be rendered");
+      return;
+    }
+    cv::cvtColor(frame.bgr, gray, cv::COLOR_BGR2GRAY);
+    depth_m = frame.depth_m.clone();
+    K = live->log.info.intrinsics;
+  }
+  OneOpenCvThread one_thread;
+  OrbConfig cfg;
+  cfg.min_fast_threshold = static_cast<int>(state.range(0));
+  GridOrbExtractor extractor(cfg, gray.cols, gray.rows);
+  FrameFeatures out(cfg.max_features, gray.cols, gray.rows);
+  for (auto _ : state) {
+    if (!extractor.extract(gray, depth_m, K, &out).ok()) state.SkipWithError("extract failed");
+    benchmark::DoNotOptimize(out.size());
+  }
+  state.counters["features"] = out.size();
+  state.SetItemsProcessed(state.iterations());
+}
+BENCHMARK(BM_FrontendGridOrbExtractSimLab)->Arg(7)->Arg(20)->Unit(benchmark::kMillisecond);
+#endif
 
 struct MatchSetup {
   FrameFeatures a{1000, 640, 480}, b{1000, 640, 480}, c{1000, 640, 480};

@@ -347,11 +347,11 @@ int run(const Args& args) {
               e.frames_late_for_filter, e.frames_ahead_of_imu, e.tracker.point_pool_exhausted,
               e.tracker.keyframes_refused);
   std::printf("estimation: keyframes=%" PRIu64 " points=%d (depth %" PRIu64 ", triangulated %" PRIu64
-              ", culled %" PRIu64 ") local_ba=%" PRIu64 " (failed %" PRIu64 ") imu_updates=%" PRIu64
-              " gated=%" PRIu64 " filter_resets=%" PRIu64 "\n",
+              ", culled %" PRIu64 ", retired %" PRIu64 ") local_ba=%" PRIu64 " (failed %" PRIu64
+              ") imu_updates=%" PRIu64 " gated=%" PRIu64 " filter_resets=%" PRIu64 "\n",
               e.tracker.keyframes, estimator->tracker().points().alive(), e.tracker.points_from_depth,
-              e.tracker.points_triangulated, e.tracker.points_culled, e.local_ba_runs, e.local_ba_failures,
-              e.mekf.updates, e.visual_updates_gated, e.filter_resets);
+              e.tracker.points_triangulated, e.tracker.points_culled, e.tracker.points_retired,
+              e.local_ba_runs, e.local_ba_failures, e.mekf.updates, e.visual_updates_gated, e.filter_resets);
   if (full.ok()) {
     std::printf(
         "full bundle adjustment: cameras=%d points=%d observations=%d cost %.4g -> %.4g in %d iterations, "

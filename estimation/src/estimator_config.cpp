@@ -15,6 +15,8 @@ void read_estimator_config(core::ConfigMap map, PoseEstimatorConfig* c) {
       .get("levels", &c->tracker.orb.levels)
       .get("fast_threshold", &c->tracker.orb.fast_threshold)
       .get("min_fast_threshold", &c->tracker.orb.min_fast_threshold)
+      .get("max_fast_threshold", &c->tracker.orb.max_fast_threshold)
+      .get("corners_per_feature", &c->tracker.orb.corners_per_feature)
       .get("grid_cell_px", &c->tracker.orb.grid_cell_px)
       .get("min_depth_m", &c->tracker.orb.min_depth_m)
       .get("max_depth_m", &c->tracker.orb.max_depth_m);
@@ -57,6 +59,10 @@ void read_estimator_config(core::ConfigMap map, PoseEstimatorConfig* c) {
   if (c->tracker.orb.levels < 1 || c->tracker.orb.levels > 16)
     orb.record_error("levels", "must be in [1, 16]");
   if (!(c->tracker.orb.scale_factor > 1.0f)) orb.record_error("scale_factor", "must be > 1");
+  if (c->tracker.orb.max_fast_threshold < c->tracker.orb.fast_threshold)
+    orb.record_error("max_fast_threshold", "must be >= fast_threshold");
+  if (!(c->tracker.orb.corners_per_feature >= 0.0f))
+    orb.record_error("corners_per_feature", "must be >= 0 (0: fixed threshold)");
   if (c->tracker.map_point_capacity < 1000) tr.record_error("map_point_capacity", "must be >= 1000");
   if (c->tracker.max_local_points < 100) tr.record_error("max_local_points", "must be >= 100");
   if (c->tracker.local_map_keyframes < 1) tr.record_error("local_map_keyframes", "must be >= 1");

@@ -72,8 +72,18 @@ core::Expected<LocalBaReport> LocalBundleAdjustment::run_once(KeyframeStore* key
   if (keyframes->size() < 2) return report;
 
   const int newest = keyframes->newest_id();
-  const int first =
+  int first =
       full ? keyframes->oldest_id() : std::max(keyframes->oldest_id(), newest - config_.window_keyframes + 1);
+  // Keyframes whose points the tracker retired (a long run; VisualTracker) observe nothing: the
+  // full BA starts at the oldest keyframe that still observes a point, and that one fixes the gauge.
+  auto observes_a_point = [&](int id) {
+    const Keyframe* kf = keyframes->get(id);
+    for (int f = 0; f < kf->features.size(); ++f)
+      if (points->get(kf->points[static_cast<size_t>(f)]) != nullptr) return true;
+    return false;
+  };
+  while (full && first < newest && !observes_a_point(first)) ++first;
+  if (first >= newest) return report;
   const size_t max_points = full ? point_to_ba_.size() : static_cast<size_t>(config_.max_points);
   BaIntrinsics intrinsics{};
   intrinsics.fx = K.fx;

@@ -31,6 +31,8 @@ GridOrbExtractor::GridOrbExtractor(const OrbConfig& config, int width, int heigh
   cell_cols_.resize(static_cast<size_t>(L));
   cell_rows_.resize(static_cast<size_t>(L));
   level_budget_.assign(static_cast<size_t>(L), 0);
+  config_.max_fast_threshold = std::max(config_.max_fast_threshold, config_.fast_threshold);
+  level_threshold_.assign(static_cast<size_t>(L), config_.fast_threshold);
   int max_cells = 1;
   for (int l = 0; l < L; ++l) {
     scale_[static_cast<size_t>(l)] = std::pow(config_.scale_factor, static_cast<float>(l));
@@ -81,11 +83,13 @@ GridOrbExtractor::GridOrbExtractor(const OrbConfig& config, int width, int heigh
 GridOrbExtractor::~GridOrbExtractor() = default;
 
 // FAST corners of one level into candidates_ (level pixels, cell index set). ORB-SLAM searches a
-// cell again at min_fast_threshold when nothing fires at fast_threshold; one FAST pass at the lower
-// threshold gives the same corners (a FAST score is the largest threshold at which the pixel is a
-// corner, and non-maximum suppression only compares scores), so each cell keeps its corners scoring
-// >= fast_threshold when it has any, else all of its corners. One pass instead of a call per empty
-// cell: fewer OpenCV allocations and no per-cell overhead.
+// cell again at min_fast_threshold when nothing fires at fast_threshold: one FAST pass over the
+// level at its threshold, then the cells left empty are searched again at min_fast_threshold, each
+// on its own window (the cell plus the FAST circle's radius). When most cells are empty (a dull
+// image) one pass over the level at the lower threshold replaces the many small calls and gives the
+// same corners (a FAST score is the largest threshold at which the pixel is a corner, and
+// non-maximum suppression only compares scores): each cell then keeps its corners scoring at least
+// the level threshold when it has any, else all of its corners.
 void GridOrbExtractor::detect_level(int level) {
   const cv::Mat& img = pyramid_[static_cast<size_t>(level)];
   candidates_.clear();
@@ -94,36 +98,73 @@ void GridOrbExtractor::detect_level(int level) {
   const int cols = cell_cols_[static_cast<size_t>(level)], rows = cell_rows_[static_cast<size_t>(level)];
   const float cell_w = static_cast<float>(w - 2 * kEdgePx) / static_cast<float>(cols);
   const float cell_h = static_cast<float>(h - 2 * kEdgePx) / static_cast<float>(rows);
-  const bool retry = config_.min_fast_threshold > 0 && config_.min_fast_threshold < config_.fast_threshold;
-  const int threshold = retry ? config_.min_fast_threshold : config_.fast_threshold;
-
-  // The FAST circle needs kFastRadius pixels around each tested pixel, so the searched window
-  // reaches kFastRadius beyond the keypoint region.
-  const int o = kEdgePx - kFastRadius;
-  const cv::Rect region(o, o, w - 2 * o, h - 2 * o);
-  cv::FAST(img(region), fast_kps_, threshold, true);
+  int& threshold = level_threshold_[static_cast<size_t>(level)];
+  const int strong = threshold;
+  const bool retry = config_.min_fast_threshold > 0 && config_.min_fast_threshold < strong;
   const int cells = cols * rows;
   std::fill(cell_count_.begin(), cell_count_.begin() + cells, 0);  // strong corners per cell
-  for (const auto& kp : fast_kps_) {
-    const float x = kp.pt.x + static_cast<float>(o), y = kp.pt.y + static_cast<float>(o);
-    if (x < kEdgePx || y < kEdgePx || x >= w - kEdgePx || y >= h - kEdgePx) continue;
-    const int cx = std::min(cols - 1, static_cast<int>((x - kEdgePx) / cell_w));
-    const int cy = std::min(rows - 1, static_cast<int>((y - kEdgePx) / cell_h));
-    const int cell = cy * cols + cx;
-    candidates_.push_back({x, y, kp.response, cell});
-    // {corners at min threshold with score >= fast_threshold} == {corners at fast_threshold}
-    // (checked against cv::FAST on a teddy frame for thresholds 12, 20, 30).
-    if (kp.response >= config_.fast_threshold) ++cell_count_[static_cast<size_t>(cell)];
+
+  // FAST on `region` (level pixels); corners inside the keypoint area go to candidates_. Corners
+  // of cells that already have strong ones are skipped when add_to_empty_only (window overlap).
+  auto add_corners = [&](const cv::Rect& region, int fast_threshold, bool add_to_empty_only) {
+    cv::FAST(img(region), fast_kps_, fast_threshold, true);
+    for (const auto& kp : fast_kps_) {
+      const float x = kp.pt.x + static_cast<float>(region.x), y = kp.pt.y + static_cast<float>(region.y);
+      if (x < kEdgePx || y < kEdgePx || x >= w - kEdgePx || y >= h - kEdgePx) continue;
+      const int cx = std::min(cols - 1, static_cast<int>((x - kEdgePx) / cell_w));
+      const int cy = std::min(rows - 1, static_cast<int>((y - kEdgePx) / cell_h));
+      const int cell = cy * cols + cx;
+      if (add_to_empty_only && cell_count_[static_cast<size_t>(cell)] > 0) continue;
+      candidates_.push_back({x, y, kp.response, cell});
+      if (!add_to_empty_only && kp.response >= strong) ++cell_count_[static_cast<size_t>(cell)];
+    }
+  };
+  // The FAST circle needs kFastRadius pixels around each tested pixel, so a searched window
+  // reaches kFastRadius beyond the keypoint area.
+  const int o = kEdgePx - kFastRadius;
+  const cv::Rect level_region(o, o, w - 2 * o, h - 2 * o);
+  add_corners(level_region, strong, false);
+
+  // Threshold control for the next frame (OrbConfig::corners_per_feature).
+  if (config_.corners_per_feature > 0) {
+    const double target =
+        config_.corners_per_feature * std::max(1, level_budget_[static_cast<size_t>(level)]);
+    const double n = static_cast<double>(candidates_.size());
+    if (n > 2.0 * target) threshold = std::min(config_.max_fast_threshold, threshold + 2);
+    if (n < 0.5 * target) threshold = std::max(config_.fast_threshold, threshold - 2);
   }
   if (!retry) return;
-  // Drop the weak corners of cells that have strong ones.
-  size_t kept = 0;
-  for (size_t i = 0; i < candidates_.size(); ++i) {
-    const Candidate& c = candidates_[i];
-    if (c.response < config_.fast_threshold && cell_count_[static_cast<size_t>(c.cell)] > 0) continue;
-    candidates_[kept++] = c;
+  int empty = 0;
+  for (int c = 0; c < cells; ++c) empty += cell_count_[static_cast<size_t>(c)] == 0 ? 1 : 0;
+  if (empty == 0) return;
+  if (2 * empty > cells) {
+    // Mostly empty: one low-threshold pass over the level, keeping the weak corners of the cells
+    // that have no strong one.
+    candidates_.clear();
+    std::fill(cell_count_.begin(), cell_count_.begin() + cells, 0);
+    add_corners(level_region, config_.min_fast_threshold, false);
+    size_t kept = 0;
+    for (size_t i = 0; i < candidates_.size(); ++i) {
+      const Candidate& c = candidates_[i];
+      if (c.response < strong && cell_count_[static_cast<size_t>(c.cell)] > 0) continue;
+      candidates_[kept++] = c;
+    }
+    candidates_.resize(kept);
+    return;
   }
-  candidates_.resize(kept);
+  for (int cy = 0; cy < rows; ++cy) {
+    for (int cx = 0; cx < cols; ++cx) {
+      if (cell_count_[static_cast<size_t>(cy * cols + cx)] > 0) continue;
+      const int x0 = kEdgePx + static_cast<int>(std::floor(static_cast<float>(cx) * cell_w)) - kFastRadius;
+      const int y0 = kEdgePx + static_cast<int>(std::floor(static_cast<float>(cy) * cell_h)) - kFastRadius;
+      const int x1 = std::min(
+          w - o, kEdgePx + static_cast<int>(std::ceil(static_cast<float>(cx + 1) * cell_w)) + kFastRadius);
+      const int y1 = std::min(
+          h - o, kEdgePx + static_cast<int>(std::ceil(static_cast<float>(cy + 1) * cell_h)) + kFastRadius);
+      if (x1 - x0 <= 2 * kFastRadius || y1 - y0 <= 2 * kFastRadius) continue;
+      add_corners(cv::Rect(x0, y0, x1 - x0, y1 - y0), config_.min_fast_threshold, true);
+    }
+  }
 }
 
 // Round-robin over the cells: rank 0 (each cell's strongest corner) of every cell, then rank 1,

@@ -325,13 +325,36 @@ bool VisualTracker::recover(RefineResult* out, int* n_correspondences) {
   return false;
 }
 
+void VisualTracker::release_keyframe_points(Keyframe* kf) {
+  for (int f = 0; f < kf->features.size(); ++f) {
+    const MapPointHandle h = kf->points[static_cast<size_t>(f)];
+    kf->points[static_cast<size_t>(f)] = MapPointHandle{};
+    MapPoint* p = points_.get(h);
+    if (p == nullptr || --p->observations > 0) continue;
+    points_.remove(h);
+    ++counters_.points_retired;
+  }
+}
+
 void VisualTracker::evict_oldest_if_full() {
   if (keyframes_.size() < keyframes_.config().capacity) return;
-  Keyframe* oldest = keyframes_.get(keyframes_.oldest_id());
-  for (int f = 0; f < oldest->features.size(); ++f) {
-    MapPoint* p = points_.get(oldest->points[static_cast<size_t>(f)]);
-    if (p == nullptr) continue;
-    if (--p->observations <= 0) points_.remove(oldest->points[static_cast<size_t>(f)]);
+  release_keyframe_points(keyframes_.get(keyframes_.oldest_id()));
+}
+
+void VisualTracker::retire_points_if_low() {
+  // Two keyframes' worth of free slots keeps the next keyframe's depth points and its
+  // triangulation from being refused. Only keyframes outside the local map and the recovery set
+  // are retired, oldest first; a point still observed by a newer keyframe stays.
+  const int reserve = 2 * config_.orb.max_features;
+  const int keep = std::max(config_.local_map_keyframes, config_.recovery_keyframes);
+  oldest_with_points_ = std::max(oldest_with_points_, keyframes_.oldest_id());
+  while (points_.capacity() - points_.alive() < reserve &&
+         oldest_with_points_ <= keyframes_.newest_id() - keep) {
+    if (Keyframe* kf = keyframes_.get(oldest_with_points_)) {
+      release_keyframe_points(kf);
+      ++counters_.keyframes_retired;
+    }
+    ++oldest_with_points_;
   }
 }
 
@@ -344,6 +367,7 @@ void VisualTracker::insert_keyframe(const hal::RgbdFrame& frame, const Eigen::Is
     return;
   }
   evict_oldest_if_full();
+  retire_points_if_low();
   Keyframe* kf = keyframes_.insert(frame.t_ns, T_world_cam);
   if (kf == nullptr) return;
   ++counters_.keyframes;

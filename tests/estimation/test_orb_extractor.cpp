@@ -200,12 +200,53 @@ TEST(GridOrbExtractor, DeterministicAndCountsAllocations) {
   std::printf("GridOrbExtractor::extract steady state: %llu allocations, %llu bytes (OpenCV internals)\n",
               static_cast<unsigned long long>(allocations), static_cast<unsigned long long>(bytes));
   EXPECT_LT(allocations, 2000u);
+  // The FAST thresholds adapt from frame to frame: a second extractor given the same two frames
+  // gives the same features.
+  GridOrbExtractor again(cfg, 640, 480);
+  ASSERT_TRUE(again.extract(img.gray, img.depth_m, K, &a).ok());
+  ASSERT_TRUE(again.extract(img.gray, img.depth_m, K, &a).ok());
   ASSERT_EQ(a.size(), b.size());
   for (int i = 0; i < a.size(); ++i) {
     EXPECT_EQ(a.feature(i).u_px, b.feature(i).u_px);
     EXPECT_EQ(a.feature(i).octave, b.feature(i).octave);
     EXPECT_EQ(hamming_distance(a.descriptor(i), b.descriptor(i)), 0);
   }
+}
+
+// Uniform noise fires FAST almost everywhere: the levels raise their thresholds (bounded by
+// max_fast_threshold) and still fill the feature budget; with the control off they stay put.
+TEST(GridOrbExtractor, TexturedImageRaisesTheFastThresholdAndKeepsTheBudget) {
+  cv::Mat noise(480, 640, CV_8UC1);
+  cv::RNG rng(7);
+  rng.fill(noise, cv::RNG::UNIFORM, 0, 256);
+  cv::GaussianBlur(noise, noise, cv::Size(3, 3), 0.8);
+  const cv::Mat no_depth;
+  OrbConfig cfg;
+  GridOrbExtractor adaptive(cfg, 640, 480);
+  FrameFeatures out(cfg.max_features, 640, 480);
+  for (int i = 0; i < 15; ++i) ASSERT_TRUE(adaptive.extract(noise, no_depth, {}, &out).ok());
+  EXPECT_EQ(out.size(), cfg.max_features);
+  EXPECT_GT(adaptive.level_threshold()[0], cfg.fast_threshold);
+  for (int t : adaptive.level_threshold()) EXPECT_LE(t, cfg.max_fast_threshold);
+
+  cfg.corners_per_feature = 0;
+  GridOrbExtractor fixed(cfg, 640, 480);
+  for (int i = 0; i < 3; ++i) ASSERT_TRUE(fixed.extract(noise, no_depth, {}, &out).ok());
+  EXPECT_EQ(out.size(), cfg.max_features);
+  for (int t : fixed.level_threshold()) EXPECT_EQ(t, cfg.fast_threshold);
+}
+
+// A dull image (a few squares on grey) keeps the base threshold: nothing to throttle.
+TEST(GridOrbExtractor, DullImageKeepsTheBaseThreshold) {
+  cv::Mat img(480, 640, CV_8UC1, cv::Scalar(128));
+  for (int k = 0; k < 12; ++k)
+    cv::rectangle(img, cv::Rect(40 + 45 * k, 60 + 25 * (k % 5), 20, 20), cv::Scalar(k % 2 ? 30 : 230), -1);
+  OrbConfig cfg;
+  GridOrbExtractor extractor(cfg, 640, 480);
+  FrameFeatures out(cfg.max_features, 640, 480);
+  for (int i = 0; i < 5; ++i) ASSERT_TRUE(extractor.extract(img, cv::Mat(), {}, &out).ok());
+  EXPECT_GT(out.size(), 0);
+  for (int t : extractor.level_threshold()) EXPECT_EQ(t, cfg.fast_threshold);
 }
 
 // Rotating the image by 180 degrees maps (u, v) to (w - 1 - u, h - 1 - v): the same corners are

@@ -44,6 +44,30 @@ TEST(VisualOdometryTum, GivenTeddyWhenRunThenTheAteIsUnderOneCentimetre) {
   EXPECT_LT(ate->translation_m.rmse, before->translation_m.rmse * 1.2);
 }
 
+// A map point pool far smaller than the run needs (teddy makes ~20k points): the tracker retires
+// the oldest keyframes' points instead of running out, keeps tracking, and the full BA still runs
+// over the keyframes that keep points, with the oldest of them fixing the gauge.
+TEST(VisualOdometryTum, GivenASmallPointPoolWhenRunThenOldPointsAreRetiredAndTrackingContinues) {
+  HWR_REQUIRE_DATASET(kTeddyDir);
+  auto log = hal::open_dataset_log("tum:" + kTeddyDir);
+  ASSERT_TRUE(log.ok()) << log.status().message();
+  auto gt = core::read_tum_trajectory(kTeddyDir + "/groundtruth.txt");
+  ASSERT_TRUE(gt.ok());
+  OfflineRunOptions options;
+  options.estimator.tracker.map_point_capacity = 8000;
+  auto run = run_offline(log.value(), options);
+  ASSERT_TRUE(run.ok()) << run.status().message();
+  EXPECT_EQ(run->counters.tracker.lost, 0u);
+  EXPECT_GT(run->counters.tracker.points_retired, 0u);
+  EXPECT_GT(run->counters.tracker.keyframes_retired, 0u);
+  EXPECT_EQ(run->counters.tracker.point_pool_exhausted, 0u);
+  EXPECT_GT(run->full_ba.cameras, 5);
+  EXPECT_LT(run->full_ba.cameras, static_cast<int>(run->counters.tracker.keyframes));
+  auto ate = compute_ate(gt.value(), run->trajectory);
+  ASSERT_TRUE(ate.ok());
+  EXPECT_LT(ate->translation_m.rmse, 0.015);
+}
+
 // Frames after warm-up that make no keyframe: every stage but the ORB extraction (OpenCV's own
 // allocations, counted and reported) allocates nothing.
 TEST(VisualOdometryTum, GivenSteadyStateWhenTrackingThenOnlyOpenCvOrbAllocates) {

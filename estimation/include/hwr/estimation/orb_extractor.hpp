@@ -3,12 +3,12 @@
 // distribution of ORB-SLAM, Mur-Artal et al., T-RO 2015 sec. III-A), each with the depth under it
 // and its back-projected point (eq. 3).
 //
-// Per pyramid level: FAST-9 corners; a cell keeps its corners scoring >= fast_threshold and, when
-// it has none, its corners scoring >= min_fast_threshold (ORB-SLAM's retry of empty cells, done in
-// one FAST pass at the lower threshold: the FAST score is the largest threshold that still detects
-// the corner). The level's share of max_features is taken round-robin over the cells, best FAST
-// response first, so every textured cell holds features before any cell holds two; a level that
-// cannot fill its share passes the rest to the next. The orientation is the intensity centroid
+// Per pyramid level: FAST-9 corners at the level's threshold (fast_threshold, raised on textured
+// levels, see OrbConfig::corners_per_feature); a cell with none is searched again at
+// min_fast_threshold (ORB-SLAM's retry of empty cells). The level's share of max_features is
+// taken round-robin over the cells, best FAST response first, so every textured cell holds
+// features before any cell holds two; a level that cannot fill its share passes the rest to the
+// next. The orientation is the intensity centroid
 // (ORB sec. 3.2); the descriptor is OpenCV's rBRIEF (learned 256-test pattern on the
 // Gaussian-smoothed 31 x 31 patch, steered by the orientation), computed level by level on this
 // extractor's pyramid.
@@ -16,8 +16,9 @@
 // Memory: the pyramid, the candidate lists and the output are sized at construction. OpenCV's
 // cv::FAST, cv::resize and ORB descriptor code (border copy, blur) allocate internally on every
 // call, about 400 allocations per frame; tests/estimation/test_orb_extractor.cpp measures them.
-// Time: about 4.3 ms per 640 x 480 frame, 1000 features, 8 levels, one core (hwr-bench micro
-// --benchmark_filter=GridOrb).
+// State: the per-level thresholds carry from one frame to the next (a fresh extractor starts at
+// fast_threshold), so the same image can give slightly different features on a later call.
+// Time: hwr-bench micro --benchmark_filter=GridOrb (a teddy frame and a rendered sim lab frame).
 
 #include <memory>
 #include <vector>
@@ -33,11 +34,19 @@
 namespace hwr::estimation {
 
 struct OrbConfig {
-  int max_features = 1000;
+  int max_features = 800;
   float scale_factor = 1.2f;
   int levels = 8;
   int fast_threshold = 20;
   int min_fast_threshold = 7;
+  // Per-level FAST threshold control: on a textured level fast_threshold fires on so many pixels
+  // that scoring them dominates the extraction, while the grid keeps only the strongest per cell.
+  // A level whose last frame gave more than 2 x corners_per_feature corners per feature of its
+  // budget raises its threshold (up to max_fast_threshold); one with fewer than half that lowers it
+  // back towards fast_threshold. Cells left empty still get the min_fast_threshold retry, so dull
+  // regions keep their features. 0 turns the control off.
+  float corners_per_feature = 8.0f;
+  int max_fast_threshold = 60;
   int grid_cell_px = 40;  // cell side in each level's own pixels
   float min_depth_m = 0.1f, max_depth_m = 10.0f;
   // Depth discontinuity: the keypoint's depth is rejected when its 3 x 3 neighbourhood has an
@@ -61,6 +70,8 @@ class GridOrbExtractor {
   const OrbConfig& config() const { return config_; }
   // Features each level aims for (before carrying a shortfall to the next level).
   const std::vector<int>& level_budget() const { return level_budget_; }
+  // The FAST threshold each level will use on the next frame (OrbConfig::corners_per_feature).
+  const std::vector<int>& level_threshold() const { return level_threshold_; }
 
  private:
   struct Candidate {
@@ -77,6 +88,7 @@ class GridOrbExtractor {
   std::vector<float> scale_;
   std::vector<cv::Mat> pyramid_;
   std::vector<int> level_budget_;
+  std::vector<int> level_threshold_;  // FAST threshold per level, adapted frame to frame
   std::vector<int> cell_cols_, cell_rows_;
   std::vector<int> umax_;  // half-width of the circular orientation patch per row
 

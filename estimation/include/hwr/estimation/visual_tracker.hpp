@@ -32,6 +32,10 @@ namespace hwr::estimation {
 struct TrackerConfig {
   OrbConfig orb;
   KeyframeStoreConfig keyframes;  // feature_capacity/width/height are taken from orb and the camera
+  // The map point pool is the tracker's working set, not the map (recon/ keeps the keyframe
+  // clouds): when fewer than two keyframes' worth of slots are free, the points of the oldest
+  // keyframes outside the local map and the recovery set are retired (their keyframes keep pose,
+  // features and descriptors), so a run of any length keeps tracking in a bounded pool.
   int map_point_capacity = 300'000;
   int local_map_keyframes = 12;   // the newest keyframes whose points form the local map
   int max_local_points = 12'000;  // projected per frame
@@ -93,6 +97,8 @@ struct TrackerCounters {
   uint64_t points_from_depth = 0;
   uint64_t points_triangulated = 0;
   uint64_t points_culled = 0;
+  uint64_t points_retired = 0;        // removed with the oldest keyframes when the pool ran low
+  uint64_t keyframes_retired = 0;     // keyframes whose point observations were retired
   uint64_t bad_frames = 0;            // wrong image type/size
   uint64_t keyframes_refused = 0;     // keyframe ids exhausted (KeyframeStoreConfig::max_total)
   uint64_t point_pool_exhausted = 0;  // new points refused: the map point pool was full
@@ -146,6 +152,8 @@ class VisualTracker {
   void insert_keyframe(const hal::RgbdFrame& frame, const Eigen::Isometry3d& T_world_cam);
   void triangulate_with_previous(Keyframe* kf);
   void evict_oldest_if_full();
+  void release_keyframe_points(Keyframe* kf);
+  void retire_points_if_low();
   void cull_points(int newest_keyframe_id);
 
   TrackerConfig config_;
@@ -180,6 +188,7 @@ class VisualTracker {
 
   bool initialized_ = false;
   int last_mapped_keyframe_ = -1;
+  int oldest_with_points_ = 0;  // keyframes older than this id have had their points retired
   Eigen::Isometry3d T_world_cam_last_ = Eigen::Isometry3d::Identity();
   Eigen::Isometry3d T_prev_last_ = Eigen::Isometry3d::Identity();  // motion model: last relative motion
   int64_t t_last_ns_ = 0;
