@@ -2,11 +2,14 @@
 // (SPARSE_SCHUR, one thread) on the same problems, from the same start, with the same loss and
 // iteration limit (acceptance of issue #3 item 6: >= 2x faster than Ceres to the same final cost).
 //
-// Problems: Ladybug 49-7776 (BAL, full), its 1800-point reduction, and a synthetic pinhole RGB-D
+// Problems: Ladybug 49-7776 (BAL, full), its 1800-point reduction, a synthetic pinhole RGB-D
 // keyframe window (30 keyframes, 6000 points, 2 % outliers, depth on 60 % of the observations,
-// the first keyframe fixed). BAL intrinsics (f, k1, k2) are held fixed by both solvers: Ceres gets
-// them as constants of its autodiff functor and the pose as 6 parameters (angle-axis, t), the
-// canonical BAL example without the intrinsics block.
+// the first keyframe fixed), and problems exported from our own runs: the end-of-run full bundle
+// adjustment of the pipeline on TUM teddy (real RGB-D) and on the first 30 s of sim lab, built
+// from the run's keyframes and points exactly as the estimator would solve them (depth residuals,
+// oldest keyframe fixed). --problem-file=FILE adds any BAL file (hwr-robot --ba-export writes one). BAL
+// intrinsics (f, k1, k2) are held fixed by both solvers: Ceres gets them as constants of its autodiff functor
+// and the pose as 6 parameters (angle-axis, t), the canonical BAL example without the intrinsics block.
 //
 // Figures: initial cost, final cost of each, total solve time of each, and the time each needs to
 // reach the common target = (worse of the two final costs) * 1.001: the cost is recorded after
@@ -41,6 +44,13 @@
 #include "hwr/estimation/ba_problem.hpp"
 #include "hwr/estimation/ba_solver.hpp"
 #include "hwr/estimation/bal_format.hpp"
+#include "hwr/estimation/local_bundle_adjustment.hpp"
+#include "hwr/estimation/offline_run.hpp"
+#include "hwr/hal/replay_source.hpp"
+#if HWR_WITH_SIM
+#include "hwr/sim/scenario.hpp"
+#include "hwr/sim/sim_live_log.hpp"
+#endif
 
 namespace hwr::bench {
 namespace {
@@ -336,6 +346,44 @@ BaProblem synthetic_rgbd_window(const BaOptions& opt) {
   return pb;
 }
 
+// The full bundle adjustment a pipeline run would end with, taken just before it runs (the run
+// itself skips it): every keyframe in the ring that observes points, the oldest fixed.
+core::Expected<BaProblem> problem_from_run(const hal::ReplayLog& log) {
+  estimation::OfflineRunOptions run_opt;
+  run_opt.estimator.full_ba_at_end = false;
+  BaProblem out;
+  const size_t last = log.frame_t_ns.empty() ? 0 : log.frame_t_ns.size() - 1;
+  run_opt.after_frame = [&](size_t i, const estimation::PoseEstimator& e) {
+    if (i != last) return;
+    estimation::LocalBundleAdjustment lba(run_opt.estimator.local_ba,
+                                          run_opt.estimator.tracker.map_point_capacity);
+    estimation::LocalBaReport report;
+    out = lba.build_problem(e.tracker().keyframes(), e.tracker().points(), e.tracker().intrinsics(), true,
+                            &report);
+  };
+  auto run = estimation::run_offline(log, run_opt);
+  if (!run.ok()) return run.status();
+  if (out.cameras.size() < 2) return core::Internal("the run produced fewer than 2 keyframes");
+  return out;
+}
+
+core::Expected<BaProblem> problem_from_named_run(const std::string& name) {
+  if (name == "teddy_full") {
+    auto log = hal::open_dataset_log("tum:" HWR_DATA_DIR "/tum-fr3-teddy-200/rgbd_dataset_freiburg3_teddy");
+    if (!log.ok()) return log.status();
+    return problem_from_run(log.value());
+  }
+#if HWR_WITH_SIM
+  auto spec = sim::load_scenario("lab");
+  if (!spec.ok()) return spec.status();
+  auto live = sim::open_sim_live_log(spec.value(), 30.0);
+  if (!live.ok()) return live.status();
+  return problem_from_run(live->log);
+#else
+  return core::Unavailable(name + ": this build has no simulator");
+#endif
+}
+
 struct BenchProblem {
   std::string name;
   BaProblem problem;
@@ -345,6 +393,7 @@ int run_ba(int argc, char** argv) {
   int reps = 3;
   bool with_peer = true;
   std::string only;
+  std::vector<std::string> files;
   BaOptions opt;
   // Enough for both solvers to converge on the gauge-free Ladybug problem (both need ~100).
   opt.max_iterations = 200;
@@ -359,14 +408,19 @@ int run_ba(int argc, char** argv) {
       with_peer = false;
     } else if (std::strncmp(argv[a], "--problem=", 10) == 0) {
       only = argv[a] + 10;
+    } else if (std::strncmp(argv[a], "--problem-file=", 15) == 0) {
+      files.push_back(argv[a] + 15);
     } else {
       std::fprintf(stderr,
                    "ba: unknown argument '%s' (use --reps=N, --iterations=N, --huber=PX (<= 0: squared), "
-                   "--problem=ladybug49|ladybug49_1800|rgbd_window, --no-ceres)\n",
+                   "--problem=ladybug49|ladybug49_1800|rgbd_window|teddy_full|lab_full_30s, "
+                   "--problem-file=FILE.bal, --no-ceres)\n",
                    argv[a]);
       return 2;
     }
   }
+  // --problem-file alone benches just the files; with --problem=NAME, that built-in as well.
+  if (!files.empty() && only.empty()) only = "-";
   std::vector<BenchProblem> problems;
   const std::pair<const char*, const char*> bal_files[] = {
       {"ladybug49", HWR_DATA_DIR "/bal-ladybug/bal/ladybug/problem-49-7776-pre.txt"},
@@ -382,7 +436,28 @@ int run_ba(int argc, char** argv) {
     problems.push_back({name, std::move(pb).value()});
   }
   if (only.empty() || only == "rgbd_window") problems.push_back({"rgbd_window", synthetic_rgbd_window(opt)});
-  if (problems.empty()) {
+  for (const char* name : {"teddy_full", "lab_full_30s"}) {
+    if (!only.empty() && only != name) continue;
+    auto pb = problem_from_named_run(name);
+    if (!pb.ok()) {
+      std::fprintf(stderr, "ba: %s: %s\n", name, pb.status().to_string().c_str());
+      return 1;
+    }
+    problems.push_back({name, std::move(pb).value()});
+  }
+  for (const std::string& path : files) {
+    auto pb = estimation::read_bal(path);
+    if (!pb.ok()) {
+      std::fprintf(stderr, "ba: %s\n", pb.status().to_string().c_str());
+      return 1;
+    }
+    // The gauge: BAL has no fixed flags, so the first camera is held (as the exporter's oldest was).
+    if (!pb->cameras.empty()) pb->cameras.front().fixed = true;
+    const size_t slash = path.find_last_of('/');
+    problems.push_back(
+        {"file:" + path.substr(slash == std::string::npos ? 0 : slash + 1), std::move(pb).value()});
+  }
+  if (problems.empty() || (only != "-" && only != "" && problems.size() == files.size())) {
     std::fprintf(stderr, "ba: unknown --problem=%s\n", only.c_str());
     return 2;
   }

@@ -19,7 +19,9 @@
 #include "hwr/core/scheduler.hpp"
 #include "hwr/core/time.hpp"
 #include "hwr/core/tum_trajectory.hpp"
+#include "hwr/estimation/bal_format.hpp"
 #include "hwr/estimation/estimator_config.hpp"
+#include "hwr/estimation/local_bundle_adjustment.hpp"
 #include "hwr/estimation/pose_estimator.hpp"
 #include "hwr/hal/fault_injection.hpp"
 #include "hwr/hal/replay_source.hpp"
@@ -53,7 +55,7 @@ struct Args {
   double duration_s = 0;  // 0: the whole source
   bool realtime = false;
   bool quiet = false;
-  std::string traj_out, timing_out, gt_out, faults, config;
+  std::string traj_out, timing_out, gt_out, faults, config, ba_export;
   bool use_imu = true, local_ba = true, full_ba = true;
 };
 
@@ -62,7 +64,7 @@ void usage() {
       stderr,
       "usage: hwr-robot --source KIND:WHAT [--config FILE] [--duration S] [--realtime] [--quiet]\n"
       "                 [--traj-out FILE] [--timing-out FILE] [--gt-out FILE] [--faults SPEC]\n"
-      "                 [--no-imu] [--no-local-ba] [--no-full-ba]\n"
+      "                 [--no-imu] [--no-local-ba] [--no-full-ba] [--ba-export FILE]\n"
       "  KIND:WHAT  sim:NAME|FILE.yaml (the simulator renders live), sim:DIR (a run written by hwr-sim),\n"
       "             tum:DIR (TUM RGB-D folder), euroc:DIR (EuRoC folder or mav0)\n"
       "  --config FILE      estimation settings (YAML, section estimation:; config/estimation.yaml lists "
@@ -70,7 +72,9 @@ void usage() {
       "  --traj-out FILE    camera poses T_world_cam at every tracked image time (TUM format)\n"
       "  --timing-out FILE  per-frame CSV, one column per pipeline stage (milliseconds)\n"
       "  --gt-out FILE      (sim sources) ground-truth T_world_cam at the image times (TUM format)\n"
-      "  --faults SPEC      inject sensor faults, e.g. dropout=30:2,exposure=40:2.5,depth-nan=10:5:0.3\n");
+      "  --faults SPEC      inject sensor faults, e.g. dropout=30:2,exposure=40:2.5,depth-nan=10:5:0.3\n"
+      "  --ba-export FILE   the end-of-run full bundle adjustment problem, before it is solved (BAL\n"
+      "                     text; hwr-bench ba --problem-file=FILE)\n");
 }
 
 // Replay paced at sensor rate: the timeline is the source's time, advancing with CLOCK_MONOTONIC.
@@ -306,6 +310,25 @@ int run(const Args& args) {
   if (!st.ok()) robot.error = st;
   if (!args.quiet) std::fputc('\n', stderr);
 
+  int rc = 0;
+  if (!args.ba_export.empty()) {
+    // The problem finish() solves next, built apart so that exporting changes nothing.
+    hwr::estimation::LocalBundleAdjustment exporter(est_cfg.local_ba, est_cfg.tracker.map_point_capacity);
+    hwr::estimation::LocalBaReport rep;
+    const auto& tracker = estimator->tracker();
+    const hwr::estimation::BaProblem& pb =
+        exporter.build_problem(tracker.keyframes(), tracker.points(), tracker.intrinsics(), true, &rep);
+    const hwr::core::Status ws = pb.cameras.size() < 2
+                                     ? hwr::core::Unavailable("fewer than 2 keyframes to export")
+                                     : hwr::estimation::write_bal(pb, args.ba_export);
+    if (!ws.ok()) {
+      std::fprintf(stderr, "hwr-robot: --ba-export: %s\n", ws.message().c_str());
+      rc = 1;
+    } else {
+      std::printf("bundle adjustment problem: %d cameras, %d points, %d observations -> %s (BAL)\n",
+                  rep.cameras, rep.points, rep.observations, args.ba_export.c_str());
+    }
+  }
   const int64_t full0 = exec_clock.now_ns();
   auto full = estimator->finish();
   const double full_s = hwr::core::ns_to_s(exec_clock.now_ns() - full0);
@@ -363,7 +386,6 @@ int run(const Args& args) {
                  "hwr-robot: full bundle adjustment failed (%s); the trajectory is the sliding-window one\n",
                  full.status().message().c_str());
   }
-  int rc = 0;
   if (!args.traj_out.empty()) {
     const auto traj = estimator->trajectory();
     const hwr::core::Status ws = hwr::core::write_tum_trajectory(args.traj_out, traj);
@@ -437,6 +459,8 @@ int main(int argc, char** argv) {
       args.gt_out = value("--gt-out");
     } else if (a == "--faults") {
       args.faults = value("--faults");
+    } else if (a == "--ba-export") {
+      args.ba_export = value("--ba-export");
     } else if (a == "--no-imu") {
       args.use_imu = false;
     } else if (a == "--no-local-ba") {

@@ -29,8 +29,8 @@ LocalBundleAdjustment::LocalBundleAdjustment(const LocalBaConfig& config, int ma
   point_to_ba_.assign(static_cast<size_t>(map_point_capacity), -1);
 }
 
-bool LocalBundleAdjustment::add_point(MapPointStore* points, MapPointHandle h, int* ba_index) {
-  const MapPoint* p = points->get(h);
+bool LocalBundleAdjustment::add_point(const MapPointStore& points, MapPointHandle h, int* ba_index) {
+  const MapPoint* p = points.get(h);
   if (p == nullptr) return false;
   int32_t& slot = point_to_ba_[static_cast<size_t>(h.index)];
   if (slot < 0) {
@@ -59,8 +59,10 @@ core::Expected<LocalBaReport> LocalBundleAdjustment::run(KeyframeStore* keyframe
   return second;
 }
 
-core::Expected<LocalBaReport> LocalBundleAdjustment::run_once(KeyframeStore* keyframes, MapPointStore* points,
-                                                              const hal::PinholeIntrinsics& K, bool full) {
+const BaProblem& LocalBundleAdjustment::build_problem(const KeyframeStore& keyframes,
+                                                      const MapPointStore& points,
+                                                      const hal::PinholeIntrinsics& K, bool full,
+                                                      LocalBaReport* report_out) {
   LocalBaReport report;
   for (int32_t slot : ba_to_point_) point_to_ba_[static_cast<size_t>(slot)] = -1;
   problem_.cameras.clear();
@@ -69,21 +71,27 @@ core::Expected<LocalBaReport> LocalBundleAdjustment::run_once(KeyframeStore* key
   camera_keyframe_.clear();
   ba_to_point_.clear();
   observation_ref_.clear();
-  if (keyframes->size() < 2) return report;
+  if (keyframes.size() < 2) {
+    *report_out = report;
+    return problem_;
+  }
 
-  const int newest = keyframes->newest_id();
+  const int newest = keyframes.newest_id();
   int first =
-      full ? keyframes->oldest_id() : std::max(keyframes->oldest_id(), newest - config_.window_keyframes + 1);
+      full ? keyframes.oldest_id() : std::max(keyframes.oldest_id(), newest - config_.window_keyframes + 1);
   // Keyframes whose points the tracker retired (a long run; VisualTracker) observe nothing: the
   // full BA starts at the oldest keyframe that still observes a point, and that one fixes the gauge.
   auto observes_a_point = [&](int id) {
-    const Keyframe* kf = keyframes->get(id);
+    const Keyframe* kf = keyframes.get(id);
     for (int f = 0; f < kf->features.size(); ++f)
-      if (points->get(kf->points[static_cast<size_t>(f)]) != nullptr) return true;
+      if (points.get(kf->points[static_cast<size_t>(f)]) != nullptr) return true;
     return false;
   };
   while (full && first < newest && !observes_a_point(first)) ++first;
-  if (first >= newest) return report;
+  if (first >= newest) {
+    *report_out = report;
+    return problem_;
+  }
   const size_t max_points = full ? point_to_ba_.size() : static_cast<size_t>(config_.max_points);
   BaIntrinsics intrinsics{};
   intrinsics.fx = K.fx;
@@ -92,7 +100,7 @@ core::Expected<LocalBaReport> LocalBundleAdjustment::run_once(KeyframeStore* key
   intrinsics.cy = K.cy;
   auto add_camera = [&](int id, bool fixed) {
     BaCamera c;
-    c.T_cam_world = keyframes->get(id)->T_world_cam.inverse();
+    c.T_cam_world = keyframes.get(id)->T_world_cam.inverse();
     c.K = intrinsics;
     c.fixed = fixed;
     problem_.cameras.push_back(c);
@@ -102,7 +110,7 @@ core::Expected<LocalBaReport> LocalBundleAdjustment::run_once(KeyframeStore* key
   // on the point count drops the oldest keyframes' points.
   for (int id = first; id <= newest; ++id) add_camera(id, id == first);
   for (int id = newest; id >= first; --id) {
-    const Keyframe* kf = keyframes->get(id);
+    const Keyframe* kf = keyframes.get(id);
     for (int f = 0; f < kf->features.size() && problem_.points.size() < max_points; ++f) {
       int ba = -1;
       add_point(points, kf->points[static_cast<size_t>(f)], &ba);
@@ -111,12 +119,12 @@ core::Expected<LocalBaReport> LocalBundleAdjustment::run_once(KeyframeStore* key
   // Older keyframes that see the window's points, held fixed.
   if (!full) {
     int fixed = 0;
-    for (int id = first - 1; id >= keyframes->oldest_id() && fixed < config_.fixed_keyframes; --id) {
-      const Keyframe* kf = keyframes->get(id);
+    for (int id = first - 1; id >= keyframes.oldest_id() && fixed < config_.fixed_keyframes; --id) {
+      const Keyframe* kf = keyframes.get(id);
       bool sees = false;
       for (int f = 0; f < kf->features.size() && !sees; ++f) {
         const MapPointHandle h = kf->points[static_cast<size_t>(f)];
-        sees = points->get(h) != nullptr && point_to_ba_[static_cast<size_t>(h.index)] >= 0;
+        sees = points.get(h) != nullptr && point_to_ba_[static_cast<size_t>(h.index)] >= 0;
       }
       if (!sees) continue;
       add_camera(id, true);
@@ -126,10 +134,10 @@ core::Expected<LocalBaReport> LocalBundleAdjustment::run_once(KeyframeStore* key
   // Observations.
   const size_t max_obs = full ? SIZE_MAX : static_cast<size_t>(config_.max_observations);
   for (size_t c = 0; c < problem_.cameras.size(); ++c) {
-    const Keyframe* kf = keyframes->get(camera_keyframe_[c]);
+    const Keyframe* kf = keyframes.get(camera_keyframe_[c]);
     for (int f = 0; f < kf->features.size() && problem_.observations.size() < max_obs; ++f) {
       const MapPointHandle h = kf->points[static_cast<size_t>(f)];
-      if (points->get(h) == nullptr) continue;
+      if (points.get(h) == nullptr) continue;
       const int32_t ba = point_to_ba_[static_cast<size_t>(h.index)];
       if (ba < 0) continue;
       const Feature& feat = kf->features.feature(f);
@@ -147,6 +155,14 @@ core::Expected<LocalBaReport> LocalBundleAdjustment::run_once(KeyframeStore* key
   report.points = static_cast<int>(problem_.points.size());
   report.observations = static_cast<int>(problem_.observations.size());
   for (const BaCamera& c : problem_.cameras) report.fixed_cameras += c.fixed ? 1 : 0;
+  *report_out = report;
+  return problem_;
+}
+
+core::Expected<LocalBaReport> LocalBundleAdjustment::run_once(KeyframeStore* keyframes, MapPointStore* points,
+                                                              const hal::PinholeIntrinsics& K, bool full) {
+  LocalBaReport report;
+  build_problem(*keyframes, *points, K, full, &report);
   if (report.cameras - report.fixed_cameras < 1 || report.observations == 0) return report;
 
   core::Expected<BaSummary> summary = core::Internal("not solved");

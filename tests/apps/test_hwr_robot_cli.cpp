@@ -35,8 +35,9 @@ TEST(HwrRobotCli, GivenTrajAndTimingOutputsWhenRunOnTeddyThenBothFilesHoldEveryT
   ASSERT_TRUE(std::filesystem::is_directory(kTeddy)) << "dataset folder missing: " << kTeddy;
   const std::string dir = ::testing::TempDir() + "hwr_robot_cli_" + std::to_string(::getpid());
   std::filesystem::create_directories(dir);
-  const CliRun r = run_robot("--source tum:" + kTeddy + " --quiet --traj-out " + dir +
-                             "/traj.txt --timing-out " + dir + "/timing.csv");
+  const CliRun r =
+      run_robot("--source tum:" + kTeddy + " --quiet --traj-out " + dir + "/traj.txt --timing-out " + dir +
+                "/timing.csv --ba-export " + dir + "/full_ba.bal");
   EXPECT_EQ(r.exit_code, 0) << r.out;
   EXPECT_NE(r.out.find("estimation: mode=visual-only frames=193 tracked=193"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("trajectory: 193 poses"), std::string::npos) << r.out;
@@ -50,6 +51,20 @@ TEST(HwrRobotCli, GivenTrajAndTimingOutputsWhenRunOnTeddyThenBothFilesHoldEveryT
   while (std::getline(timing, line)) ++rows;
   EXPECT_EQ(poses, 193);
   EXPECT_EQ(rows, 193);
+  // --ba-export: the full bundle adjustment as BAL text, header counts matching the body (one line
+  // per observation, 9 per camera, 3 per point) and the summary line.
+  std::ifstream bal(dir + "/full_ba.bal");
+  long cameras = 0, points = 0, observations = 0, lines = 0;
+  bal >> cameras >> points >> observations;
+  EXPECT_GT(cameras, 10);
+  EXPECT_GT(points, 1000);
+  EXPECT_GE(observations, points);
+  std::getline(bal, line);
+  while (std::getline(bal, line)) lines += line.empty() ? 0 : 1;
+  EXPECT_EQ(lines, observations + 9 * cameras + 3 * points);
+  EXPECT_NE(r.out.find("bundle adjustment problem: " + std::to_string(cameras) + " cameras"),
+            std::string::npos)
+      << r.out;
   std::filesystem::remove_all(dir);
 }
 

@@ -50,10 +50,16 @@ class LocalBundleAdjustment {
   core::Expected<LocalBaReport> run(KeyframeStore* keyframes, MapPointStore* points,
                                     const hal::PinholeIntrinsics& K, bool full = false);
 
+  // The problem run() would solve next, built without solving or changing the stores (report
+  // gets the counts; summary stays empty). For exporting the bundle adjustments of real runs
+  // (hwr-robot --ba-export, hwr-bench ba). Valid until the next call.
+  const BaProblem& build_problem(const KeyframeStore& keyframes, const MapPointStore& points,
+                                 const hal::PinholeIntrinsics& K, bool full, LocalBaReport* report);
+
  private:
   core::Expected<LocalBaReport> run_once(KeyframeStore* keyframes, MapPointStore* points,
                                          const hal::PinholeIntrinsics& K, bool full);
-  bool add_point(MapPointStore* points, MapPointHandle h, int* ba_index);
+  bool add_point(const MapPointStore& points, MapPointHandle h, int* ba_index);
 
   LocalBaConfig config_;
   BaProblem problem_;
