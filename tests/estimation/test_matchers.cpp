@@ -57,7 +57,11 @@ void load_view(size_t index, TeddyView* view) {
   ASSERT_TRUE(gt_pose_at(ds->groundtruth(), ds->frame_time_ns(index), &view->T_world_cam));
   cv::Mat gray;
   cv::cvtColor(frame.bgr, gray, cv::COLOR_BGR2GRAY);
-  GridOrbExtractor extractor(OrbConfig{}, 640, 480);
+  // 1000 features per view, whatever the tracker's default: the match-count floors below were set
+  // for it, and FLANN's LSH tables are randomly seeded, so a smaller margin would be flaky.
+  OrbConfig orb;
+  orb.max_features = 1000;
+  GridOrbExtractor extractor(orb, 640, 480);
   ASSERT_TRUE(extractor.extract(gray, frame.depth_m, hal::tum_fr3_intrinsics(), &view->features).ok());
 }
 
