@@ -3,13 +3,12 @@
 
 #include <cmath>
 #include <filesystem>
-#include <fstream>
-#include <sstream>
 #include <string>
 
 #include <gtest/gtest.h>
 
 #include "hal/hal_test_util.hpp"
+#include "hwr/core/file_io.hpp"
 #include "hwr/core/so3.hpp"
 #include "hwr/estimation/bal_format.hpp"
 #include "hwr/estimation/ba_solver.hpp"
@@ -24,11 +23,11 @@ const std::string kBalDir = HWR_DATA_DIR "/bal-ladybug";
 const std::string kLadybugFull = kBalDir + "/bal/ladybug/problem-49-7776-pre.txt";
 const std::string kLadybug1800 = kBalDir + "/test/bal-ladybug-problem-49-7776-pre-shrink-1800.txt";
 
+// The whole file (empty when it cannot be read: the comparisons then fail and say so).
 std::string slurp(const std::string& path) {
-  std::ifstream f(path, std::ios::binary);
-  std::stringstream ss;
-  ss << f.rdbuf();
-  return ss.str();
+  std::string text;
+  if (!core::read_file(path, &text).ok()) text.clear();
+  return text;
 }
 
 TEST(BalFormat, ReadsLadybug1800) {

@@ -9,7 +9,6 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
-#include <sstream>
 #include <string>
 #include <vector>
 
@@ -17,6 +16,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <gtest/gtest.h>
 
+#include "hwr/core/file_io.hpp"
 #include "hwr/core/tum_trajectory.hpp"
 #include "hwr/hal/replay_source.hpp"
 #include "hwr/hal/sensor_streams.hpp"
@@ -31,11 +31,11 @@ namespace {
 
 namespace fs = std::filesystem;
 
+// The whole file (empty when it cannot be read: the comparisons then fail and say so).
 std::string slurp(const fs::path& p) {
-  std::ifstream f(p, std::ios::binary);
-  std::stringstream ss;
-  ss << f.rdbuf();
-  return ss.str();
+  std::string text;
+  if (!core::read_file(p.string(), &text).ok()) text.clear();
+  return text;
 }
 
 // A scratch folder per test and process (ctest runs tests in parallel processes).
