@@ -21,6 +21,7 @@
 #include <vector>
 
 #include "bench_command.hpp"
+#include "bench_sequences.hpp"
 #include "hwr/core/alloc_counter.hpp"
 #include "hwr/core/tum_trajectory.hpp"
 #include "hwr/estimation/estimator_config.hpp"
@@ -28,50 +29,11 @@
 #include "hwr/estimation/trajectory_metrics.hpp"
 #include "hwr/hal/replay_source.hpp"
 #include "rgbd_odometry_peer.hpp"
-#if HWR_WITH_SIM
-#include "hwr/sim/scenario.hpp"
-#include "hwr/sim/sim_live_log.hpp"
-#endif
 
 namespace hwr::bench {
 namespace {
 
-const std::string kTeddy = HWR_DATA_DIR "/tum-fr3-teddy-200/rgbd_dataset_freiburg3_teddy";
 constexpr size_t kWarmupFrames = 30;
-
-struct Sequence {
-  std::string name;
-  hal::ReplayLog log;
-  std::vector<core::StampedPose> groundtruth;
-  double path_length_m = 0;
-};
-
-core::Expected<Sequence> open_sequence(const std::string& name, double duration_s) {
-  Sequence s;
-  s.name = name;
-  if (name == "teddy") {
-    auto log = hal::open_dataset_log("tum:" + kTeddy);
-    if (!log.ok()) return log.status();
-    s.log = std::move(log.value());
-    auto gt = core::read_tum_trajectory(kTeddy + "/groundtruth.txt");
-    if (!gt.ok()) return gt.status();
-    s.groundtruth = std::move(gt.value());
-    return s;
-  }
-#if HWR_WITH_SIM
-  auto spec = sim::load_scenario(name);
-  if (!spec.ok()) return spec.status();
-  auto live = sim::open_sim_live_log(spec.value(), duration_s);
-  if (!live.ok()) return live.status();
-  s.log = std::move(live->log);
-  s.groundtruth = std::move(live->groundtruth_T_world_cam_at_frames);
-  s.path_length_m = live->path_length_m;
-  return s;
-#else
-  (void)duration_s;
-  return core::Unavailable("sequence " + name + ": this build has no simulator");
-#endif
-}
 
 double percentile(std::vector<double> v, double q) {
   if (v.empty()) return 0;

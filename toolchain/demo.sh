@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Installs what is missing, builds, and runs the pipeline as far as it exists:
-#   simulator (hwr-sim) → robot process (hwr-robot: HAL replay → fixed-rate scheduler)
+#   simulator (hwr-sim) → robot process (hwr-robot: HAL replay → fixed-rate scheduler → pose
+#   estimation → local maps and the map store) → evaluation (trajectory ATE, welding-plate AE)
 # Outputs go to out/demo/ (override with HWR_DEMO_OUT=DIR). By default the first 60 s of the lab
 # walk are simulated (~2 GB of images, a few minutes on 2 cores); --duration S picks another
 # length, --full the whole ~48 m, 164 s walk (~5 GB).
@@ -21,18 +22,25 @@ cmake --build --preset host-release --target hwr-sim hwr-robot hwr-eval
 bin=build/host-release/apps
 
 echo
-echo "== 1/3 simulator: the lab welding workshop with exact ground truth =="
+echo "== 1/4 simulator: the lab welding workshop with exact ground truth =="
 rm -rf "$out/sim-lab"
 "$bin/hwr-sim/hwr-sim" --scenario lab --out "$out/sim-lab" --threads 2 "${duration[@]}"
 
 echo
-echo "== 2/3 robot: the run through the HAL, the fixed-rate scheduler and pose estimation =="
+echo "== 2/4 robot: HAL, fixed-rate scheduler, pose estimation, local maps into the map store =="
+rm -rf "$out/map-store"
 "$bin/hwr-robot/hwr-robot" --source "sim:$out/sim-lab" --quiet --traj-out "$out/trajectory.txt" \
-  --timing-out "$out/timing.csv" | tee "$out/robot-telemetry.txt"
+  --timing-out "$out/timing.csv" --map-out "$out/map-store" --cloud-out "$out/map-cloud.bin" \
+  | tee "$out/robot-telemetry.txt"
 
 echo
-echo "== 3/3 evaluation: the estimated trajectory against the simulator's ground truth =="
+echo "== 3/4 evaluation: the estimated trajectory against the simulator's ground truth =="
 "$bin/hwr-eval/hwr-eval" ate "$out/sim-lab/groundtruth.txt" "$out/trajectory.txt" | tee "$out/ate.txt"
+
+echo
+echo "== 4/4 evaluation: welding plates fitted in the map against the simulator's ground truth =="
+"$bin/hwr-eval/hwr-eval" ae --groundtruth "$out/sim-lab/weld_groundtruth.yaml" --cloud "$out/map-cloud.bin" \
+  --align "$out/sim-lab/groundtruth.txt" "$out/trajectory.txt" | tee "$out/ae.txt"
 
 
 cat <<MSG
@@ -50,6 +58,13 @@ demo outputs:
       per-frame time of every pipeline stage (docs/estimation.md)
   $out/ate.txt
       absolute trajectory error against the simulator's ground truth (docs/evaluation.md)
+  $out/map-store/
+      the map store: closed local maps (segments/seg_NNNNNN: segment.yaml, keyframes.bin,
+      cloud.bin) with their keyframes and ORB + NDT junctions (docs/reconstruction.md)
+  $out/map-cloud.bin
+      every segment's points in the world frame (16-byte CloudPoint records)
+  $out/ae.txt
+      welding-plate reconstruction error (AE) of that map (docs/reconstruction.md)
 
-mapping, detection and the ground station are the next stages (docs/architecture.md).
+detection and the ground station are the next stages (docs/architecture.md).
 MSG

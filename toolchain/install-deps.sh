@@ -16,8 +16,8 @@ packages=(
   libeigen3-dev libyaml-cpp-dev
   # hal
   libopencv-dev libembree-dev libusb-1.0-0-dev
-  # estimation / recon
-  libflann-dev liblz4-dev
+  # estimation / recon (zlib: the map store's CRC32)
+  libflann-dev liblz4-dev zlib1g-dev
   # mapio
   libdraco-dev liblcm-dev liblcm-bin
   # tests and benches
@@ -28,7 +28,7 @@ agx=()
 agx_packages=(g++-aarch64-linux-gnu qemu-user binutils-aarch64-linux-gnu)
 for arg in "$@"; do
   case "$arg" in
-    --with-bench-peers) bench_peers=(libopencv-contrib-dev libceres-dev) ;;
+    --with-bench-peers) bench_peers=(libopencv-contrib-dev libceres-dev libpcl-dev) ;;
     --agx) agx=("${agx_packages[@]}") ;;
     *) echo "install-deps: unknown option '$arg' (use --with-bench-peers, --agx)" >&2; exit 2 ;;
   esac

@@ -2,17 +2,21 @@
 // simulator rendering live) is polled by the "hal" task into bounded rings; the fixed-rate
 // scheduler's pipeline tasks drain them into pose estimation (docs/estimation.md): the inertial
 // task feeds the IMU filter, the camera task tracks frames, the mapping task runs the
-// sliding-window bundle adjustment; a full bundle adjustment ends the run. Replay runs on a
+// sliding-window bundle adjustment and fuses settled keyframes into local maps, closed into the
+// map store as they fill (docs/reconstruction.md); a full bundle adjustment ends the run. Replay runs on a
 // simulated clock: deterministic, faster than real time; --realtime paces it at sensor rate.
 #include <unistd.h>
 
 #include <cinttypes>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <ctime>
 #include <filesystem>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "hwr/core/file_io.hpp"
 #include "hwr/core/log.hpp"
@@ -26,6 +30,10 @@
 #include "hwr/hal/fault_injection.hpp"
 #include "hwr/hal/replay_source.hpp"
 #include "hwr/hal/stream_health.hpp"
+#include "hwr/recon/local_mapper.hpp"
+#include "hwr/recon/local_mapper_config.hpp"
+#include "hwr/recon/map_store.hpp"
+#include "hwr/recon/segment_writer.hpp"
 #if HWR_WITH_SIM
 #include "hwr/sim/scenario.hpp"
 #include "hwr/sim/sim_live_log.hpp"
@@ -55,7 +63,7 @@ struct Args {
   double duration_s = 0;  // 0: the whole source
   bool realtime = false;
   bool quiet = false;
-  std::string traj_out, timing_out, gt_out, faults, config, ba_export;
+  std::string traj_out, timing_out, gt_out, faults, config, ba_export, map_out, cloud_out;
   bool use_imu = true, local_ba = true, full_ba = true;
 };
 
@@ -65,16 +73,21 @@ void usage() {
       "usage: hwr-robot --source KIND:WHAT [--config FILE] [--duration S] [--realtime] [--quiet]\n"
       "                 [--traj-out FILE] [--timing-out FILE] [--gt-out FILE] [--faults SPEC]\n"
       "                 [--no-imu] [--no-local-ba] [--no-full-ba] [--ba-export FILE]\n"
+      "                 [--map-out DIR] [--cloud-out FILE]\n"
       "  KIND:WHAT  sim:NAME|FILE.yaml (the simulator renders live), sim:DIR (a run written by hwr-sim),\n"
       "             tum:DIR (TUM RGB-D folder), euroc:DIR (EuRoC folder or mav0)\n"
-      "  --config FILE      estimation settings (YAML, section estimation:; config/estimation.yaml lists "
-      "them)\n"
+      "  --config FILE      settings (YAML, sections estimation: and map:; config/estimation.yaml and\n"
+      "                     config/map.yaml list them)\n"
       "  --traj-out FILE    camera poses T_world_cam at every tracked image time (TUM format)\n"
       "  --timing-out FILE  per-frame CSV, one column per pipeline stage (milliseconds)\n"
       "  --gt-out FILE      (sim sources) ground-truth T_world_cam at the image times (TUM format)\n"
       "  --faults SPEC      inject sensor faults, e.g. dropout=30:2,exposure=40:2.5,depth-nan=10:5:0.3\n"
       "  --ba-export FILE   the end-of-run full bundle adjustment problem, before it is solved (BAL\n"
-      "                     text; hwr-bench ba --problem-file=FILE)\n");
+      "                     text; hwr-bench ba --problem-file=FILE)\n"
+      "  --map-out DIR      the map store: closed local maps (segments) with keyframes and junctions,\n"
+      "                     written as they close (docs/reconstruction.md)\n"
+      "  --cloud-out FILE   every segment's points in the world frame, at the end (binary CloudPoint\n"
+      "                     array, 16 bytes per point; hwr-eval ae --cloud FILE)\n");
 }
 
 // Replay paced at sensor rate: the timeline is the source's time, advancing with CLOCK_MONOTONIC.
@@ -94,6 +107,8 @@ struct Robot {
   hwr::hal::SensorSource* source = nullptr;
   hwr::core::Scheduler* scheduler = nullptr;
   hwr::estimation::PoseEstimator* estimator = nullptr;
+  hwr::recon::LocalMapper* mapper = nullptr;
+  hwr::recon::SegmentSink* segments = nullptr;
   hwr::hal::StreamMonitor imu{200.0};
   hwr::hal::StreamMonitor camera{30.0};
   uint64_t mag = 0, gnss = 0, gnss_3d = 0;
@@ -140,9 +155,12 @@ void camera_task(void* ctx, int64_t) {
 
 void mapping_task(void* ctx, int64_t) {
   auto* r = static_cast<Robot*>(ctx);
-  if (!r->estimator->local_ba_due()) return;
-  auto report = r->estimator->run_local_ba();
-  if (!report.ok()) HWR_LOG_WARN("robot", "local bundle adjustment: %s", report.status().message().c_str());
+  if (r->estimator->local_ba_due()) {
+    auto report = r->estimator->run_local_ba();
+    if (!report.ok()) HWR_LOG_WARN("robot", "local bundle adjustment: %s", report.status().message().c_str());
+  }
+  // Keyframes settled by the sliding window go into the active local map (docs/reconstruction.md).
+  r->mapper->update(r->estimator->tracker().keyframes(), r->segments);
 }
 
 void telemetry_task(void* ctx, int64_t now_ns) {
@@ -167,6 +185,56 @@ void telemetry_task(void* ctx, int64_t now_ns) {
                e.tracker.keyframes, r->estimator->tracker().points().alive(), e.tracker.lost,
                n ? ms / n : 0.0, c.frames_dropped + r->streams->imu.dropped(), overruns);
   if (!isatty(STDERR_FILENO)) std::fputc('\n', stderr);
+}
+
+// Where closed segments go: the map store's writer thread (--map-out), the world-frame cloud
+// (--cloud-out), and a one-line summary per junction for the end-of-run report.
+class RobotSegmentSink final : public hwr::recon::SegmentSink {
+ public:
+  hwr::recon::StoreSegmentWriter* writer = nullptr;
+  bool keep_world_cloud = false;
+  std::vector<hwr::recon::CloudPoint> cloud_world;
+  std::vector<std::string> junction_lines;
+  uint64_t segments = 0, points = 0;
+
+  void take(hwr::recon::SegmentRecord&& seg) override {
+    ++segments;
+    points += seg.points_segment.size();
+    if (seg.segment_id > 0) {
+      const hwr::recon::JunctionRecord& j = seg.junction;
+      const Eigen::Isometry3d d = j.T_prev_segment_segment_odometry.inverse() * j.T_prev_segment_segment;
+      char line[256];
+      std::snprintf(
+          line, sizeof(line),
+          "junction %u: keyframes %d -> %d, orb %d matches %d inliers, ndt %s (%d it, fitness %.3f), "
+          "correction to odometry %.1f mm %.3f deg",
+          seg.segment_id, j.keyframe_before, j.keyframe_after, j.orb_matches, j.orb_inliers,
+          j.ndt_converged ? "converged" : "not converged", j.ndt_iterations, j.ndt_fitness,
+          d.translation().norm() * 1e3, Eigen::AngleAxisd(d.linear()).angle() * 180.0 / M_PI);
+      junction_lines.emplace_back(line);
+    }
+    if (keep_world_cloud) {
+      const Eigen::Isometry3f T = seg.T_world_segment.cast<float>();
+      for (const auto& p : seg.points_segment) {
+        hwr::recon::CloudPoint q = p;
+        const Eigen::Vector3f w = T * Eigen::Vector3f(p.x_m, p.y_m, p.z_m);
+        q.x_m = w.x();
+        q.y_m = w.y();
+        q.z_m = w.z();
+        cloud_world.push_back(q);
+      }
+    }
+    if (writer != nullptr) writer->take(std::move(seg));
+  }
+};
+
+std::string utc_run_id() {
+  const std::time_t now = std::time(nullptr);
+  std::tm tm{};
+  gmtime_r(&now, &tm);
+  char buf[32];
+  std::strftime(buf, sizeof(buf), "%Y%m%dT%H%M%SZ", &tm);
+  return buf;
 }
 
 struct OpenedSource {
@@ -257,18 +325,44 @@ int run(const Args& args) {
   }
 
   hwr::estimation::PoseEstimatorConfig est_cfg;
+  hwr::recon::LocalMapperConfig map_cfg;
   if (!args.config.empty()) {
-    auto loaded = hwr::estimation::load_estimator_config(args.config);
-    if (!loaded.ok()) {
-      std::fprintf(stderr, "hwr-robot: --config: %s\n", loaded.status().message().c_str());
+    auto doc = hwr::core::ConfigDocument::load_file(args.config);
+    hwr::core::Status cs = doc.status();
+    if (doc.ok()) {
+      hwr::estimation::read_estimator_config(doc->root().child("estimation"), &est_cfg);
+      hwr::recon::read_local_mapper_config(doc->root().child("map"), &map_cfg);
+      cs = doc->finish();
+    }
+    if (!cs.ok()) {
+      std::fprintf(stderr, "hwr-robot: --config: %s\n", cs.message().c_str());
       return 2;
     }
-    est_cfg = loaded.value();
   }
   est_cfg.use_imu = est_cfg.use_imu && args.use_imu;
   est_cfg.local_ba_enabled = est_cfg.local_ba_enabled && args.local_ba;
   est_cfg.full_ba_at_end = est_cfg.full_ba_at_end && args.full_ba;
   auto estimator = std::make_unique<hwr::estimation::PoseEstimator>(est_cfg, info);
+  auto mapper = hwr::recon::LocalMapper::create(map_cfg, info.intrinsics, est_cfg.tracker.orb.max_features);
+  if (!mapper.ok()) {
+    std::fprintf(stderr, "hwr-robot: map: %s\n", mapper.status().message().c_str());
+    return 2;
+  }
+  RobotSegmentSink segments;
+  segments.keep_world_cloud = !args.cloud_out.empty();
+  std::unique_ptr<hwr::recon::StoreSegmentWriter> store_writer;
+  if (!args.map_out.empty()) {
+    hwr::recon::StoreMetadata meta;
+    meta.run_id = utc_run_id();
+    meta.intrinsics = info.intrinsics;
+    auto store = hwr::recon::MapStore::open(args.map_out, meta);
+    if (!store.ok()) {
+      std::fprintf(stderr, "hwr-robot: --map-out: %s\n", store.status().message().c_str());
+      return 1;
+    }
+    store_writer = std::make_unique<hwr::recon::StoreSegmentWriter>(std::move(store.value()));
+    segments.writer = store_writer.get();
+  }
 
   const int64_t t0 = info.first_t_ns;
   hwr::core::SimClock sim_clock(t0);
@@ -283,6 +377,8 @@ int run(const Args& args) {
   robot.source = source->get();
   robot.scheduler = &sched;
   robot.estimator = estimator.get();
+  robot.mapper = &mapper.value();
+  robot.segments = &segments;
   robot.quiet = args.quiet;
   robot.imu = hwr::hal::StreamMonitor(info.imu_rate_hz > 0 ? info.imu_rate_hz : 200.0);
   robot.camera = hwr::hal::StreamMonitor(info.camera_rate_hz > 0 ? info.camera_rate_hz : 30.0);
@@ -305,7 +401,7 @@ int run(const Args& args) {
   inertial_task(&robot, end);
   camera_task(&robot, end);
   estimator->advance_imu(end + kImuHoldbackNs);
-  if (robot.estimator->local_ba_due()) mapping_task(&robot, end);
+  mapping_task(&robot, end);
   const double wall_s = hwr::core::ns_to_s(exec_clock.now_ns() - wall0);
   if (!st.ok()) robot.error = st;
   if (!args.quiet) std::fputc('\n', stderr);
@@ -332,6 +428,9 @@ int run(const Args& args) {
   const int64_t full0 = exec_clock.now_ns();
   auto full = estimator->finish();
   const double full_s = hwr::core::ns_to_s(exec_clock.now_ns() - full0);
+  // The keyframes not yet fused (the lag) go in with their final poses; the last segment closes.
+  mapper->finish(estimator->tracker().keyframes(), &segments);
+  if (store_writer) store_writer->drain();
 
   char table[4096];
   sched.format_telemetry(table, sizeof(table));
@@ -385,6 +484,33 @@ int run(const Args& args) {
     std::fprintf(stderr,
                  "hwr-robot: full bundle adjustment failed (%s); the trajectory is the sliding-window one\n",
                  full.status().message().c_str());
+  }
+  {
+    const auto& m = mapper->counters();
+    std::printf("map: segments=%" PRIu64 " points=%" PRIu64 " keyframes_fused=%" PRIu64
+                " without_images=%" PRIu64 " junctions: orb-seeded=%" PRIu64 " ndt-refined=%" PRIu64
+                " of %" PRIu64 "\n",
+                m.segments_closed, m.points_closed, m.keyframes_fused, m.keyframes_without_images,
+                m.junctions_orb, m.junctions_ndt, m.segments_closed > 0 ? m.segments_closed - 1 : 0);
+    for (const auto& line : segments.junction_lines) std::printf("  %s\n", line.c_str());
+    if (store_writer) {
+      const auto w = store_writer->counters();
+      std::printf("map store: %" PRIu64 " segments written (%" PRIu64 " failed, %" PRIu64 " stalls) -> %s\n",
+                  w.written, w.failed, w.stalls, args.map_out.c_str());
+      if (w.failed > 0) rc = 1;
+    }
+    if (!args.cloud_out.empty()) {
+      std::string bytes(reinterpret_cast<const char*>(segments.cloud_world.data()),
+                        segments.cloud_world.size() * sizeof(hwr::recon::CloudPoint));
+      const hwr::core::Status ws = hwr::core::write_file_atomic(args.cloud_out, bytes);
+      if (!ws.ok()) {
+        std::fprintf(stderr, "hwr-robot: --cloud-out: %s\n", ws.message().c_str());
+        rc = 1;
+      } else {
+        std::printf("cloud: %zu points (world frame) -> %s\n", segments.cloud_world.size(),
+                    args.cloud_out.c_str());
+      }
+    }
   }
   if (!args.traj_out.empty()) {
     const auto traj = estimator->trajectory();
@@ -459,6 +585,10 @@ int main(int argc, char** argv) {
       args.gt_out = value("--gt-out");
     } else if (a == "--faults") {
       args.faults = value("--faults");
+    } else if (a == "--map-out") {
+      args.map_out = value("--map-out");
+    } else if (a == "--cloud-out") {
+      args.cloud_out = value("--cloud-out");
     } else if (a == "--ba-export") {
       args.ba_export = value("--ba-export");
     } else if (a == "--no-imu") {

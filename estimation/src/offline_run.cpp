@@ -57,6 +57,7 @@ core::Expected<OfflineRun> run_offline(const hal::ReplayLog& log, const OfflineR
   } else {
     HWR_LOG_WARN("estimation", "full bundle adjustment: %s", full.status().message().c_str());
   }
+  if (options.at_end) options.at_end(*estimator);
   out.trajectory = estimator->trajectory();
   out.timings = estimator->timings();
   out.counters = estimator->counters();

@@ -24,6 +24,9 @@ struct OfflineRunOptions {
   std::function<void(PoseEstimator&)> on_start;
   // Called around process_frame only (allocation counting of the tracking path).
   std::function<void(size_t frame_index, bool before)> around_track;
+  // Called once after the end-of-run full bundle adjustment, with the final keyframes (e.g. to
+  // flush the local mapper).
+  std::function<void(const PoseEstimator&)> at_end;
 };
 
 struct OfflineRun {

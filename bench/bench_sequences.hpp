@@ -1,0 +1,31 @@
+#pragma once
+// The sequences the pipeline benches run on: `teddy` (TUM fr3/teddy, 200 frames, from
+// ../shared/data) and any simulator scenario by name (`lab`, `outdoor`, or a scenario YAML),
+// rendered live. Sim sequences also carry the weld work pieces' ground truth in the run's world frame.
+
+#include <string>
+#include <vector>
+
+#include "hwr/core/status.hpp"
+#include "hwr/core/tum_trajectory.hpp"
+#include "hwr/hal/replay_source.hpp"
+#if HWR_WITH_SIM
+#include "hwr/sim/scene_spec.hpp"
+#endif
+
+namespace hwr::bench {
+
+struct Sequence {
+  std::string name;
+  hal::ReplayLog log;
+  std::vector<core::StampedPose> groundtruth;  // T_world_cam (at the frame times for sim)
+  double path_length_m = 0;
+#if HWR_WITH_SIM
+  sim::SceneGroundTruth weld_truth_world;  // plates and seams in the run's world frame
+#endif
+};
+
+// duration_s > 0 cuts a sim sequence (hwr-sim --duration); ignored for teddy.
+core::Expected<Sequence> open_sequence(const std::string& name, double duration_s);
+
+}  // namespace hwr::bench

@@ -1,0 +1,407 @@
+// `hwr-bench segmentation` (issue #4; paper Table III): the whole pipeline — pose estimation, keyframe
+// clouds, the active local map, segment cuts with ORB + NDT junctions — on the sim sequences, then
+//  - ATE without segmentation (the estimator's trajectory) and with it (each segment's part of the
+//    trajectory carried through the chain of refined junctions instead of the odometry), and
+//  - AE of the welding plates on the map assembled without (T_world_segment) and with (chained
+//    junctions) segmentation,
+// printed side by side; the error of every junction against the true relative pose of its two
+// keyframes; mapping time per keyframe and tracking time per frame binned by total map size; and
+// the process's resident memory at every segment close (flat after the first segment when memory is
+// bounded).
+//
+//   hwr-bench segmentation [--sequences lab,outdoor] [--duration S] [--config FILE]
+//                          [--store DIR]  (also write the segments to a map store there)
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <map>
+#include <memory>
+#include <numeric>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "bench_command.hpp"
+#include "bench_sequences.hpp"
+#include "hwr/core/config.hpp"
+#include "hwr/estimation/estimator_config.hpp"
+#include "hwr/estimation/offline_run.hpp"
+#include "hwr/estimation/trajectory_metrics.hpp"
+#include "hwr/recon/local_mapper.hpp"
+#include "hwr/recon/local_mapper_config.hpp"
+#include "hwr/recon/plate_fit.hpp"
+#include "hwr/recon/segment_writer.hpp"
+
+namespace hwr::bench {
+namespace {
+
+double rss_mib() {
+  std::ifstream f("/proc/self/status");
+  std::string key;
+  while (f >> key) {
+    if (key == "VmRSS:") {
+      double kib = 0;
+      f >> kib;
+      return kib / 1024.0;
+    }
+    std::getline(f, key);
+  }
+  return 0;
+}
+
+constexpr double kRoiMarginM = 0.3;
+
+double mean(const std::vector<double>& v) {
+  return v.empty() ? 0 : std::accumulate(v.begin(), v.end(), 0.0) / static_cast<double>(v.size());
+}
+
+double angle_deg(const Eigen::Isometry3d& T) { return Eigen::AngleAxisd(T.linear()).angle() * 180.0 / M_PI; }
+
+// What the bench keeps of a closed segment: its frame, junction, time span and, for AE, the points.
+struct SegmentSummary {
+  uint32_t id = 0;
+  Eigen::Isometry3d T_world_segment;
+  recon::JunctionRecord junction;
+  int64_t t_first_ns = 0;
+  double travelled_m = 0;
+  size_t points = 0;
+  Eigen::Isometry3d T_world_a = Eigen::Isometry3d::Identity();  // the segment's last keyframe
+  int64_t t_last_ns = 0;
+  std::vector<recon::CloudPoint> points_segment;
+  double rss_mib_at_close = 0;
+};
+
+// Oriented boxes around the weld plates (world frame), inflated: the bench keeps only the map points
+// inside them, so its own memory stays flat while it measures the robot's.
+struct PlateRoi {
+  Eigen::Isometry3d T_plate_world;
+  Eigen::Vector3d half_m;
+};
+
+class BenchSink final : public recon::SegmentSink {
+ public:
+  recon::StoreSegmentWriter* writer = nullptr;
+  std::vector<PlateRoi> rois;
+  std::vector<SegmentSummary> segments;
+  void take(recon::SegmentRecord&& seg) override {
+    SegmentSummary s;
+    s.id = seg.segment_id;
+    s.T_world_segment = seg.T_world_segment;
+    s.junction = seg.junction;
+    s.t_first_ns = seg.t_first_ns;
+    s.travelled_m = seg.travelled_m;
+    s.points = seg.points_segment.size();
+    if (!seg.keyframes.empty()) {
+      s.T_world_a = seg.keyframes.back().T_world_cam;
+      s.t_last_ns = seg.keyframes.back().t_ns;
+    }
+    const Eigen::Isometry3d T = seg.T_world_segment;
+    for (const auto& p : seg.points_segment) {
+      const Eigen::Vector3d w = T * Eigen::Vector3d(p.x_m, p.y_m, p.z_m);
+      for (const PlateRoi& r : rois) {
+        const Eigen::Vector3d q = r.T_plate_world * w;
+        if (std::abs(q.x()) <= r.half_m.x() && std::abs(q.y()) <= r.half_m.y() &&
+            std::abs(q.z()) <= r.half_m.z()) {
+          s.points_segment.push_back(p);
+          break;
+        }
+      }
+    }
+    if (writer != nullptr) writer->take(std::move(seg));
+    s.rss_mib_at_close = rss_mib();
+    segments.push_back(std::move(s));
+  }
+};
+
+// AE (hwr-eval ae's definition) of the plates on a map whose segment k is placed by pose[k].
+double ae_of(const std::vector<SegmentSummary>& segs, const std::vector<Eigen::Isometry3d>& T_world_segment,
+             const recon::WeldGroundTruth& gt, double* corner_mm, int* seen) {
+  std::vector<recon::CloudPoint> world;
+  for (size_t k = 0; k < segs.size(); ++k) {
+    const Eigen::Isometry3f T = T_world_segment[k].cast<float>();
+    for (const auto& p : segs[k].points_segment) {
+      recon::CloudPoint q = p;
+      const Eigen::Vector3f w = T * Eigen::Vector3f(p.x_m, p.y_m, p.z_m);
+      q.x_m = w.x();
+      q.y_m = w.y();
+      q.z_m = w.z();
+      world.push_back(q);
+    }
+  }
+  std::vector<recon::PlateFit> fits;
+  for (size_t i = 0; i < gt.plates.size(); ++i) {
+    // Voxel means of several segment grids: fitted as raw points (plate_fit.hpp's single-grid
+    // voxel model does not apply across segments).
+    auto fit = recon::fit_plate(world.data(), world.size(), recon::plate_roi_from_truth(gt, i),
+                                recon::PlateFitConfig{});
+    fits.push_back(fit.ok() ? fit.value() : recon::PlateFit{});
+  }
+  auto report = recon::compute_ae(fits, gt);
+  if (!report.ok()) return NAN;
+  *corner_mm = report->ae_corner_mm;
+  *seen = report->plates_seen;
+  return report->ae_mm;
+}
+
+struct Bin {
+  const char* name;
+  double max_points;
+  std::vector<double> map_ms, frame_ms;
+};
+
+int run_segmentation(int argc, char** argv) {
+  std::string sequences = "lab,outdoor", store_dir;
+  double duration_s = 0;
+  estimation::PoseEstimatorConfig est_cfg;
+  recon::LocalMapperConfig map_cfg;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    if (a == "--sequences" && i + 1 < argc) {
+      sequences = argv[++i];
+    } else if (a == "--duration" && i + 1 < argc) {
+      duration_s = std::atof(argv[++i]);
+    } else if (a == "--store" && i + 1 < argc) {
+      store_dir = argv[++i];
+    } else if (a == "--config" && i + 1 < argc) {
+      auto doc = core::ConfigDocument::load_file(argv[++i]);
+      core::Status st = doc.status();
+      if (doc.ok()) {
+        estimation::read_estimator_config(doc->root().child("estimation"), &est_cfg);
+        recon::read_local_mapper_config(doc->root().child("map"), &map_cfg);
+        st = doc->finish();
+      }
+      if (!st.ok()) {
+        std::fprintf(stderr, "hwr-bench segmentation: --config: %s\n", st.message().c_str());
+        return 2;
+      }
+    } else {
+      std::fprintf(stderr, "hwr-bench segmentation: unknown option '%s'\n", a.c_str());
+      return 2;
+    }
+  }
+  std::vector<std::string> names;
+  std::stringstream ss(sequences);
+  for (std::string n; std::getline(ss, n, ',');)
+    if (!n.empty()) names.push_back(n);
+
+  std::vector<std::string> keys;
+  double worst_ate_diff_pct = 0, worst_ae_diff_pct = 0;
+  std::vector<double> ae_all;
+  char line0[256];
+  Bin bins[] = {
+      {"< 0.1M", 1e5, {}, {}}, {"0.1M-1M", 1e6, {}, {}}, {"1M-10M", 1e7, {}, {}}, {">= 10M", 1e300, {}, {}}};
+  for (const std::string& name : names) {
+    auto seq = open_sequence(name, duration_s);
+    if (!seq.ok()) {
+      std::fprintf(stderr, "hwr-bench segmentation: %s: %s\n", name.c_str(), seq.status().message().c_str());
+      return 1;
+    }
+    auto mapper =
+        recon::LocalMapper::create(map_cfg, seq->log.info.intrinsics, est_cfg.tracker.orb.max_features);
+    if (!mapper.ok()) {
+      std::fprintf(stderr, "hwr-bench segmentation: %s\n", mapper.status().message().c_str());
+      return 2;
+    }
+    BenchSink sink;
+#if HWR_WITH_SIM
+    for (const auto& plate : seq->weld_truth_world.plates) {
+      sink.rois.push_back(
+          {plate.T_scene_plate.inverse(), plate.size_m / 2 + Eigen::Vector3d::Constant(kRoiMarginM)});
+    }
+#endif
+    std::unique_ptr<recon::StoreSegmentWriter> writer;
+    if (!store_dir.empty()) {
+      recon::StoreMetadata meta;
+      meta.run_id = "bench-" + name;
+      meta.intrinsics = seq->log.info.intrinsics;
+      auto store = recon::MapStore::open(store_dir + "/" + name, meta);
+      if (!store.ok()) {
+        std::fprintf(stderr, "hwr-bench segmentation: --store: %s\n", store.status().message().c_str());
+        return 1;
+      }
+      writer = std::make_unique<recon::StoreSegmentWriter>(std::move(store.value()));
+      sink.writer = writer.get();
+    }
+    std::vector<double> total_points_at_frame;
+    std::vector<std::pair<double, double>> map_ms_at_points;  // (ms, total points) per update that fused
+    estimation::OfflineRunOptions opt;
+    opt.estimator = est_cfg;
+    opt.after_frame = [&](size_t, const estimation::PoseEstimator& e) {
+      const uint64_t fused = mapper->counters().keyframes_fused;
+      const auto t0 = std::chrono::steady_clock::now();
+      mapper->update(e.tracker().keyframes(), &sink);
+      const double ms =
+          std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+      const double total =
+          static_cast<double>(mapper->counters().points_closed) + mapper->active_map().size();
+      if (mapper->counters().keyframes_fused != fused) map_ms_at_points.emplace_back(ms, total);
+      total_points_at_frame.push_back(total);
+    };
+    opt.at_end = [&](const estimation::PoseEstimator& e) { mapper->finish(e.tracker().keyframes(), &sink); };
+    auto run = estimation::run_offline(seq->log, opt);
+    if (!run.ok()) {
+      std::fprintf(stderr, "hwr-bench segmentation: %s: %s\n", name.c_str(), run.status().message().c_str());
+      return 1;
+    }
+    if (writer) writer->drain();
+    const auto& segs = sink.segments;
+
+    // The trajectory with segmentation: segment k's frames carried by D_k = C_k T_world_segment_k^-1,
+    // C_0 = T_world_segment_0, C_k = C_{k-1} T_prev_segment_segment_k (the refined junctions).
+    std::vector<Eigen::Isometry3d> C(segs.size()), D(segs.size());
+    for (size_t k = 0; k < segs.size(); ++k) {
+      C[k] = k == 0 ? segs[0].T_world_segment : C[k - 1] * segs[k].junction.T_prev_segment_segment;
+      D[k] = C[k] * segs[k].T_world_segment.inverse();
+    }
+    std::vector<core::StampedPose> traj_seg = run->trajectory;
+    size_t k = 0;
+    for (auto& p : traj_seg) {
+      while (k + 1 < segs.size() && p.t_ns >= segs[k + 1].t_first_ns) ++k;
+      if (!segs.empty()) p.T_world_body = D[k] * p.T_world_body;
+    }
+    auto ate_without = estimation::compute_ate(seq->groundtruth, run->trajectory, estimation::AteOptions{});
+    auto ate_with = estimation::compute_ate(seq->groundtruth, traj_seg, estimation::AteOptions{});
+    if (!ate_without.ok() || !ate_with.ok()) {
+      std::fprintf(stderr, "hwr-bench segmentation: %s: ATE failed\n", name.c_str());
+      return 1;
+    }
+    const double a0 = ate_without->translation_m.rmse, a1 = ate_with->translation_m.rmse;
+    const double diff_pct = 100.0 * std::abs(a1 - a0) / a0;
+    worst_ate_diff_pct = std::max(worst_ate_diff_pct, diff_pct);
+
+    // Junctions against the truth.
+    std::map<int64_t, Eigen::Isometry3d> gt_at;
+    for (const auto& p : seq->groundtruth) gt_at[p.t_ns] = p.T_world_body;
+    std::printf("\n%s: %zu frames, %.0f m, %zu segments, %llu keyframes fused\n", name.c_str(), run->frames,
+                seq->path_length_m, segs.size(),
+                static_cast<unsigned long long>(mapper->counters().keyframes_fused));
+    std::printf("%4s %7s %9s %8s %6s %6s %11s %11s %11s %11s\n", "cut", "travel", "points", "inliers", "ndt",
+                "RSS", "junct [mm]", "junct [deg]", "odom [mm]", "odom [deg]");
+    std::vector<double> junction_mm, odometry_mm;
+    for (size_t s = 0; s < segs.size(); ++s) {
+      const auto& j = segs[s].junction;
+      double ej_mm = NAN, ej_deg = NAN, eo_mm = NAN, eo_deg = NAN;
+      if (s > 0) {
+        // Keyframe times: a is the previous segment's last keyframe, b this segment's first.
+        const SegmentSummary& prev = segs[s - 1];
+        const Eigen::Isometry3d T_prevseg_a = prev.T_world_segment.inverse() * prev.T_world_a;
+        const Eigen::Isometry3d T_a_b_ref = T_prevseg_a.inverse() * j.T_prev_segment_segment;
+        const Eigen::Isometry3d T_a_b_odo = T_prevseg_a.inverse() * j.T_prev_segment_segment_odometry;
+        const auto ga = gt_at.find(prev.t_last_ns), gb = gt_at.find(segs[s].t_first_ns);
+        if (ga != gt_at.end() && gb != gt_at.end()) {
+          const Eigen::Isometry3d T_a_b_true = ga->second.inverse() * gb->second;
+          const Eigen::Isometry3d er = T_a_b_true.inverse() * T_a_b_ref,
+                                  eo = T_a_b_true.inverse() * T_a_b_odo;
+          ej_mm = er.translation().norm() * 1e3;
+          ej_deg = angle_deg(er);
+          eo_mm = eo.translation().norm() * 1e3;
+          eo_deg = angle_deg(eo);
+          junction_mm.push_back(ej_mm);
+          odometry_mm.push_back(eo_mm);
+        }
+      }
+      std::printf("%4zu %7.2f %9zu %8d %6s %6.0f %11.1f %11.3f %11.1f %11.3f\n", s, segs[s].travelled_m,
+                  segs[s].points, j.orb_inliers, s == 0 ? "-" : (j.ndt_converged ? "conv" : "no"),
+                  segs[s].rss_mib_at_close, ej_mm, ej_deg, eo_mm, eo_deg);
+    }
+    std::printf("ATE without segmentation %.4f m, with %.4f m: difference %.2f %% (paper: 2.3-3.75 %%)\n", a0,
+                a1, diff_pct);
+#if HWR_WITH_SIM
+    recon::WeldGroundTruth gt;
+    for (const auto& p : seq->weld_truth_world.plates) {
+      recon::PlateTruth t;
+      t.name = p.name;
+      t.size_m = p.size_m;
+      t.T_world_plate = p.T_scene_plate;  // already moved to the world frame
+      for (size_t c = 0; c < 8; ++c) t.corners_world[c] = p.corners_scene[c];
+      gt.plates.push_back(t);
+    }
+    std::vector<Eigen::Isometry3d> T_without(segs.size());
+    for (size_t s = 0; s < segs.size(); ++s) T_without[s] = segs[s].T_world_segment;
+    double corner0 = NAN, corner1 = NAN;
+    int seen0 = 0, seen1 = 0;
+    const double ae0 = ae_of(segs, T_without, gt, &corner0, &seen0);
+    const double ae1 = ae_of(segs, C, gt, &corner1, &seen1);
+    const double ae_diff_pct = 100.0 * std::abs(ae1 - ae0) / ae0;
+    worst_ae_diff_pct =
+        std::isfinite(ae_diff_pct) ? std::max(worst_ae_diff_pct, ae_diff_pct) : worst_ae_diff_pct;
+    ae_all.push_back(ae0);
+    std::printf(
+        "AE (plate dimensions) without segmentation %.2f mm, with %.2f mm: difference %.2f %%; corners "
+        "%.2f / %.2f mm; plates seen %d / %zu (paper: lab 80 / 83 mm, outdoor 208 / 214 mm)\n",
+        ae0, ae1, ae_diff_pct, corner0, corner1, seen0, gt.plates.size());
+    std::snprintf(line0, sizeof(line0), "seg_ae_mm_%s_without=%.3f", name.c_str(), ae0);
+    keys.push_back(line0);
+    std::snprintf(line0, sizeof(line0), "seg_ae_mm_%s_with=%.3f", name.c_str(), ae1);
+    keys.push_back(line0);
+    std::snprintf(line0, sizeof(line0), "seg_ae_corner_mm_%s_without=%.3f", name.c_str(), corner0);
+    keys.push_back(line0);
+    std::snprintf(line0, sizeof(line0), "plates_seen_%s=%d/%zu", name.c_str(), seen0, gt.plates.size());
+    keys.push_back(line0);
+#endif
+    char line[256];
+    std::snprintf(line, sizeof(line), "seg_ate_m_%s_without=%.5f", name.c_str(), a0);
+    keys.push_back(line);
+    std::snprintf(line, sizeof(line), "seg_ate_m_%s_with=%.5f", name.c_str(), a1);
+    keys.push_back(line);
+    std::snprintf(line, sizeof(line), "seg_ate_diff_pct_%s=%.3f", name.c_str(), diff_pct);
+    keys.push_back(line);
+    std::snprintf(line, sizeof(line), "segments_%s=%zu", name.c_str(), segs.size());
+    keys.push_back(line);
+    std::snprintf(line, sizeof(line), "junction_err_mm_%s_mean=%.2f", name.c_str(), mean(junction_mm));
+    keys.push_back(line);
+    std::snprintf(line, sizeof(line), "junction_err_mm_%s_max=%.2f", name.c_str(),
+                  junction_mm.empty() ? 0.0 : *std::max_element(junction_mm.begin(), junction_mm.end()));
+    keys.push_back(line);
+    std::snprintf(line, sizeof(line), "junction_odometry_err_mm_%s_mean=%.2f", name.c_str(),
+                  mean(odometry_mm));
+    keys.push_back(line);
+    if (segs.size() >= 2) {
+      double peak = 0;
+      for (size_t s = 1; s < segs.size(); ++s) peak = std::max(peak, segs[s].rss_mib_at_close);
+      std::snprintf(line, sizeof(line), "rss_growth_pct_%s=%.2f", name.c_str(),
+                    100.0 * (peak - segs[0].rss_mib_at_close) / segs[0].rss_mib_at_close);
+      keys.push_back(line);
+    }
+
+    // Time against map size.
+    for (const auto& [ms, pts] : map_ms_at_points) {
+      for (Bin& b : bins)
+        if (pts < b.max_points) {
+          b.map_ms.push_back(ms);
+          break;
+        }
+    }
+    for (size_t i = 0; i < run->timings.size() && i < total_points_at_frame.size(); ++i) {
+      if (run->timings[i].state == estimation::TrackState::kWaiting) continue;
+      for (Bin& b : bins)
+        if (total_points_at_frame[i] < b.max_points) {
+          b.frame_ms.push_back(run->timings[i].total_ns * 1e-6);
+          break;
+        }
+    }
+  }
+  std::printf("\n%-10s %12s %14s %12s\n", "map size", "keyframes", "map ms / kf", "frame ms");
+  for (const Bin& b : bins) {
+    std::printf("%-10s %12zu %14.2f %12.2f\n", b.name, b.map_ms.size(), mean(b.map_ms), mean(b.frame_ms));
+  }
+  for (const auto& k : keys) std::printf("%s\n", k.c_str());
+  std::printf("seg_ate_diff_pct=%.3f\n", worst_ate_diff_pct);
+  std::printf("seg_ae_diff_pct=%.3f\n", worst_ae_diff_pct);
+  std::printf("ae_mm=%.3f\n", mean(ae_all));
+  return 0;
+}
+
+}  // namespace
+
+HWR_BENCH_COMMAND(
+    segmentation, "segmentation",
+    "map segmentation (paper Table III): ATE and AE with/without segmentation, junction errors, "
+    "time and memory against map size [--sequences lab,outdoor] [--duration S] [--config FILE] "
+    "[--store DIR]",
+    run_segmentation);
+
+}  // namespace hwr::bench

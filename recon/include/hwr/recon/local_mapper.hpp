@@ -1,0 +1,104 @@
+#pragma once
+// The mapping side of the robot (paper sec. II-B global map, II-D segmentation; issue #4 items 2, 4):
+// keyframes, once the sliding-window bundle adjustment has settled them (`keyframe_lag` keyframes
+// behind the newest), are back-projected (eq. 3) and merged into the active local map, a voxel map
+// in the segment frame. The segment frame is the camera frame of the segment's first keyframe, at
+// the pose the estimator had for it when the segment started.
+//
+// The active local map is closed when the keyframes fused into it have travelled
+// `segment_max_travel_m` or it holds `segment_max_points` voxels, whichever comes first. The junction
+// to the next segment is aligned by ORB + NDT between the last keyframe before the cut and the first
+// after it (JunctionAligner), and the closed segment — its points, keyframes (poses, features,
+// descriptors) and junction — is handed to a SegmentSink (the on-disk store writer, or a collector
+// in tests and benches). The voxel map is then cleared and reused, so memory does not grow with the
+// run: everything is sized in create().
+
+#include <cstdint>
+#include <memory>
+
+#include <Eigen/Geometry>
+
+#include "hwr/core/arena.hpp"
+#include "hwr/core/status.hpp"
+#include "hwr/estimation/keyframe_store.hpp"
+#include "hwr/recon/junction.hpp"
+#include "hwr/recon/keyframe_cloud.hpp"
+#include "hwr/recon/map_store.hpp"
+#include "hwr/recon/voxel_map.hpp"
+
+namespace hwr::recon {
+
+// Receives closed segments. take() may move the record's contents out.
+class SegmentSink {
+ public:
+  virtual ~SegmentSink() = default;
+  virtual void take(SegmentRecord&& segment) = 0;
+};
+
+struct LocalMapperConfig {
+  KeyframeCloudConfig cloud;                                 // map points (stride 2)
+  VoxelMapConfig voxels{0.02, 1'000'000};                    // the active local map
+  double segment_max_travel_m = 18.0;                        // paper: 15-20 m
+  int segment_max_points = 500'000;                          // paper: 5x10^5
+  int keyframe_lag = 2;                                      // fuse keyframes this many behind the newest
+  KeyframeCloudConfig junction_cloud{0.2f, 8.0f, 2, 0.05f};  // the NDT clouds of a junction
+  JunctionConfig junction;
+  int max_keyframes_per_segment = 4096;
+};
+
+struct LocalMapperCounters {
+  uint64_t keyframes_fused = 0;
+  uint64_t keyframes_without_images = 0;  // their images were gone: pose kept, no points
+  uint64_t segments_closed = 0;
+  uint64_t points_closed = 0;  // voxels in closed segments
+  uint64_t junctions_orb = 0;  // seeded by ORB
+  uint64_t junctions_ndt = 0;  // refined by NDT
+  uint64_t cloud_errors = 0;
+};
+
+class LocalMapper {
+ public:
+  // Errors: invalid config or intrinsics (kInvalidArgument).
+  static core::Expected<LocalMapper> create(const LocalMapperConfig& config, const hal::PinholeIntrinsics& K,
+                                            int max_features);
+
+  // Fuses every keyframe of `keyframes` at least keyframe_lag behind the newest that is not fused
+  // yet (all of them when `flush`), closing segments into `sink` on the way.
+  void update(const estimation::KeyframeStore& keyframes, SegmentSink* sink, bool flush = false);
+  // Flushes and closes the active segment (end of run).
+  void finish(const estimation::KeyframeStore& keyframes, SegmentSink* sink);
+
+  const LocalMapperCounters& counters() const { return counters_; }
+  const VoxelMap& active_map() const { return map_; }
+  uint32_t active_segment_id() const { return segment_.segment_id; }
+  double active_travel_m() const { return segment_.travelled_m; }
+  const LocalMapperConfig& config() const { return config_; }
+
+  LocalMapper(LocalMapper&&) noexcept;
+  LocalMapper& operator=(LocalMapper&&) noexcept;
+  ~LocalMapper();
+
+ private:
+  LocalMapper(const LocalMapperConfig& config, const hal::PinholeIntrinsics& K, VoxelMap map,
+              JunctionAligner junction);
+  void fuse(const estimation::KeyframeStore& keyframes, int id, SegmentSink* sink);
+  void close_segment(SegmentSink* sink);
+
+  LocalMapperConfig config_;
+  hal::PinholeIntrinsics K_;
+  VoxelMap map_;
+  JunctionAligner junction_;
+  std::unique_ptr<core::Arena> cloud_arena_;
+  std::unique_ptr<core::Arena> junction_arena_[2];  // the previous keyframe's junction cloud, the current one
+  int junction_prev_ = 0;                           // which arena holds the previous keyframe's cloud
+  KeyframeCloud junction_cloud_prev_;
+  SegmentRecord segment_;  // the active segment (points filled when it closes)
+  bool segment_open_ = false;
+  int next_id_ = 0;   // next keyframe id to fuse
+  int last_id_ = -1;  // last fused keyframe
+  Eigen::Isometry3d T_world_last_ = Eigen::Isometry3d::Identity();
+  uint32_t next_segment_id_ = 0;
+  LocalMapperCounters counters_;
+};
+
+}  // namespace hwr::recon

@@ -1,0 +1,120 @@
+#pragma once
+// The on-disk map store (issue #4 item 4): closed local maps ("segments") of a run, each with its
+// keyframes (poses, ORB features and descriptors, GNSS / magnetometer metadata), its point cloud in
+// the segment frame and the junction to the previous segment. The robot writes a segment once, when
+// it closes, so its memory stays bounded however long it runs; the relocalization issue reads the
+// store back lazily (one segment at a time), mapio streams it.
+//
+// Layout of a store directory:
+//   DIR/store.yaml                    run metadata (format version, robot/run id, intrinsics)
+//   DIR/segments/seg_NNNNNN/          one closed segment, complete or absent:
+//       segment.yaml                  id, poses, junction, counts, travelled distance, CRC32s
+//       keyframes.bin                 keyframe records (little-endian, see map_store.cpp)
+//       cloud.bin                     CloudPoint array, segment frame
+// Atomicity: a segment is written into DIR/segments/.tmp-seg_NNNNNN-<pid>/, every file fsync'ed,
+// then renamed to seg_NNNNNN and the parent directory fsync'ed; a crash at any moment leaves either
+// the whole segment or a .tmp- directory that open() deletes. Every read is validated (magic,
+// version, sizes against the file length, CRC32 of each payload) before anything is allocated, so a
+// corrupt or truncated file is an error, never a crash or a huge allocation.
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <Eigen/Geometry>
+
+#include "hwr/core/status.hpp"
+#include "hwr/hal/pinhole_camera.hpp"
+#include "hwr/recon/keyframe_cloud.hpp"
+
+namespace hwr::recon {
+
+struct StoreMetadata {
+  uint32_t format_version = 1;
+  std::string robot_id = "hwr-0";
+  std::string run_id;  // e.g. UTC start time "20261124T195600Z"
+  hal::PinholeIntrinsics intrinsics;
+  int descriptor_bytes = 32;  // ORB
+};
+
+struct StoredFeature {
+  float u_px = 0, v_px = 0;  // keypoint in the keyframe image
+  float depth_m = 0;         // 0: no depth
+  uint8_t octave = 0;
+};
+
+struct StoredKeyframe {
+  int32_t id = -1;  // the run's keyframe id
+  int64_t t_ns = 0;
+  Eigen::Isometry3d T_world_cam = Eigen::Isometry3d::Identity();
+  std::vector<StoredFeature> features;
+  std::vector<uint8_t> descriptors;  // features.size() * descriptor_bytes
+  // Metadata for relocalization (issue #6); valid flags false when the sensor gave nothing.
+  bool gnss_valid = false;
+  double lat_deg = 0, lon_deg = 0, alt_m = 0;
+  bool mag_valid = false;
+  Eigen::Vector3d mag_imu_uT = Eigen::Vector3d::Zero();  // magnetometer, IMU frame
+};
+
+struct JunctionRecord {
+  bool valid = false;  // false for the first segment and when alignment failed
+  int32_t keyframe_before = -1, keyframe_after = -1;
+  int orb_matches = 0, orb_inliers = 0;
+  bool ndt_converged = false;
+  int ndt_iterations = 0;
+  double ndt_fitness = 0;
+  // The refined junction: pose of this segment's frame in the previous segment's frame.
+  Eigen::Isometry3d T_prev_segment_segment = Eigen::Isometry3d::Identity();
+  // The estimator's (odometry) value of the same, for comparison.
+  Eigen::Isometry3d T_prev_segment_segment_odometry = Eigen::Isometry3d::Identity();
+};
+
+struct SegmentRecord {
+  uint32_t segment_id = 0;
+  // The segment frame is the camera frame of its first keyframe; this is its pose in the run's
+  // world frame as the estimator had it when the segment closed.
+  Eigen::Isometry3d T_world_segment = Eigen::Isometry3d::Identity();
+  JunctionRecord junction;
+  double travelled_m = 0;  // path length of the keyframes in this segment
+  int64_t t_first_ns = 0, t_last_ns = 0;
+  std::vector<StoredKeyframe> keyframes;
+  std::vector<CloudPoint> points_segment;  // in the segment frame
+};
+
+struct SegmentSummary {
+  uint32_t segment_id = 0;
+  int keyframes = 0;
+  int64_t points = 0;
+  uint64_t bytes = 0;  // on disk
+};
+
+class MapStore {
+ public:
+  // Opens DIR, creating it (and writing store.yaml from `metadata`) when absent. An existing store
+  // keeps its metadata (the argument is then ignored); leftover .tmp- directories are removed.
+  // Errors: unwritable directory (kIoError), malformed store.yaml (kParseError), a newer format
+  // version (kInvalidArgument).
+  static core::Expected<MapStore> open(const std::string& dir, const StoreMetadata& metadata);
+  // Opens an existing store read-only (no cleanup, nothing created). kNotFound when absent.
+  static core::Expected<MapStore> open_existing(const std::string& dir);
+
+  const StoreMetadata& metadata() const { return metadata_; }
+  const std::string& dir() const { return dir_; }
+
+  // Writes a segment atomically (see above). kInvalidArgument if the id already exists or a
+  // keyframe's descriptor size does not match; kIoError on any write/fsync/rename failure (the
+  // temp directory is removed).
+  core::Status write_segment(const SegmentRecord& segment);
+  // Complete segments, sorted by id (reads segment.yaml only).
+  core::Expected<std::vector<SegmentSummary>> list_segments() const;
+  // Reads and validates one segment. kNotFound, kCorruptData (CRC / size mismatch, truncation),
+  // kParseError.
+  core::Expected<SegmentRecord> read_segment(uint32_t segment_id) const;
+
+ private:
+  MapStore(std::string dir, StoreMetadata metadata) : dir_(std::move(dir)), metadata_(std::move(metadata)) {}
+  std::string dir_;
+  StoreMetadata metadata_;
+};
+
+}  // namespace hwr::recon

@@ -1,0 +1,221 @@
+#pragma once
+// Welding-plate reconstruction error (issue #4 item 5): how well the map reproduces the work pieces.
+//
+//  1. read_weld_groundtruth: the plates and seams hwr-sim writes into each run folder
+//     (weld_groundtruth.yaml, docs/simulator.md), in the run's world frame.
+//  2. fit_plate: one plate from map points inside a region of interest (the ground-truth plate's box
+//     inflated by a margin; it stands in for a detection until the detection issue):
+//       a. the visible face's plane: RANSAC over the ROI points with the normal within
+//          max_normal_angle_rad of the ROI's ±z (a fillet web standing on its base plate is
+//          perpendicular to it and never wins), then least squares (PCA) on the inliers, twice;
+//       b. the face's rectangle in the plane, edge by edge (see "Edges" below), its in-plane rotation
+//          from the slopes of the four edge lines;
+//       c. length, width, the 4 face corners in the world frame, inlier count, plane RMS.
+//  3. compute_ae: per plate |L - L_gt|, |W - W_gt| and corner errors against the ground-truth
+//     corners of the same face; ae_mm = mean absolute dimension error over the plates seen.
+//
+// Edges. A map is point samples of the surface, or voxel means of them (recon::VoxelMap); taking the
+// outermost point as the edge is biased inward by the sample spacing (up to half a voxel per edge).
+// Both estimators below are unbiased for a straight edge under their sampling model. In the frame
+// of the current rectangle, s is the coordinate along an edge's outward normal, t along the edge,
+// e the current edge offset; points within corner_margin_m of a corner (along t) are not used.
+//  - kRawPoints (band mean): the points with s in [e - B, e + B_out] are uniform in s on
+//    [e - B, E(t)] with E(t) = a + b t the true edge, so E[s | t] = (e - B + a + b t) / 2: the
+//    least-squares line of s over t, doubled, gives the edge's offset and slope. The points are
+//    averaged, not located, so the estimate does not depend on the sample spacing, and symmetric
+//    noise moves points across E without moving their mean. Iterated from a quantile start.
+//  - kVoxelMeans (centroid inversion): a voxel mean is the centroid of the part of its cell's cross
+//    section with the face that lies on the plate. For every boundary voxel near the current edge
+//    (the cell one voxel further out in the face holds no face voxel), the cross section (cube of the
+//    grid cut by the plane parallel to the face through the mean) is clipped by a candidate edge line
+//    and the line is moved (bisection) until the clipped polygon's centroid matches the voxel mean;
+//    the edge is then exact for any grid phase and rotation when the points inside each voxel sample
+//    the surface uniformly. A boundary voxel may also hold a wall at the edge (the plate's own side
+//    face below the face, a surface rising from the edge): the mean's height above the face gives
+//    that wall's share w of the points (mean heights: the face's noise cut to the cell, the wall's
+//    middle), and the wall's points sit on the edge line: (1 - w) c(d) + w d = s_mean. A line fit
+//    with residual trimming over an edge's voxels gives its offset and slope. Started from the band
+//    mean (biased outward by at most a voxel); an edge with too few boundary voxels keeps that.
+// Edge-stage points. Raw points: only those on the open side of the face (0 <= h <= max(2.5 RMS,
+// 1 mm) along the outward normal): the plate's side faces lie behind it, half of the face's points
+// remain, unbiased; the band also ends at the first gap past the edge (a bench a plate thickness
+// below a web's foot is a separate cluster). Voxel means: within h_max above the face and down to
+// half the side's height in a cell below it (mixed boundary voxels), never within h_max of a plate
+// thickness down (bench, other face), and not when the cell one voxel further out along the normal
+// holds an off-face point (a surface crossing the face). Points nearer another plate's ground-truth
+// box than this plate's are left out, so an edge shared with a coplanar butt partner (or a web's
+// foot, coplanar with its base's side face) is bounded by the ground truth, not measured. Edges stay
+// inside the ROI; one that stops at its boundary is flagged (PlateFit::at_roi_limit).
+// Not real time: allocates per call (an evaluation tool, not the mapping task's hot path).
+
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <Eigen/Geometry>
+
+#include "hwr/core/status.hpp"
+#include "hwr/recon/keyframe_cloud.hpp"
+
+namespace hwr::recon {
+
+// ---------------------------------------------------------------------------------------------
+// Ground truth (weld_groundtruth.yaml)
+
+struct PlateTruth {
+  std::string name;
+  Eigen::Vector3d size_m = Eigen::Vector3d::Zero();  // length (plate x), width (plate y), thickness (plate z)
+  Eigen::Isometry3d T_world_plate = Eigen::Isometry3d::Identity();  // plate frame at the box centre
+  // Corner i at plate-local (sx L/2, sy W/2, sz T/2), sx = bit 2 of i, sy = bit 1, sz = bit 0 (set: +).
+  std::array<Eigen::Vector3d, 8> corners_world{};
+};
+
+enum class SeamType { kFillet, kButt };
+
+struct SeamTruth {
+  std::string name;
+  SeamType type = SeamType::kFillet;
+  Eigen::Vector3d start_world = Eigen::Vector3d::Zero();
+  Eigen::Vector3d end_world = Eigen::Vector3d::Zero();
+  std::array<std::string, 2> plates;  // names of two plates of the file
+};
+
+struct WeldGroundTruth {
+  std::string scenario;
+  std::vector<PlateTruth> plates;
+  std::vector<SeamTruth> seams;
+};
+
+// Errors: kNotFound / kIoError (file), kParseError (YAML syntax, a missing or unknown key, a wrong
+// type, frame other than "world", sizes not positive, T_world_plate not a rigid transform, corners
+// that disagree with T_world_plate and size_m by more than 1 mm, duplicate plate names, a seam whose
+// type is not fillet|butt or whose plates are not two plates of the file). Messages name the file,
+// the line and the key.
+core::Expected<WeldGroundTruth> read_weld_groundtruth(const std::string& path);
+core::Expected<WeldGroundTruth> parse_weld_groundtruth(const std::string& yaml_text,
+                                                       const std::string& source_name);
+
+// ---------------------------------------------------------------------------------------------
+// Cloud file (hwr-eval ae --cloud; hwr-robot --cloud-out): a headerless array of CloudPoint
+// records, 16 bytes each, little-endian: x_m, y_m, z_m as IEEE-754 binary32, then r, g, b, flags as
+// one byte each. The frame is the writer's (hwr-robot writes the world frame of its estimate).
+
+inline constexpr size_t kCloudRecordBytes = 16;
+static_assert(sizeof(CloudPoint) == kCloudRecordBytes, "CloudPoint must stay 16 bytes (cloud file record)");
+
+// Errors: kNotFound / kIoError (file); kCorruptData: a size that is not a multiple of 16 bytes, or
+// a record with a non-finite coordinate (the record index is named).
+core::Expected<std::vector<CloudPoint>> read_cloud_file(const std::string& path);
+// Writes atomically (core::write_file_atomic).
+core::Status write_cloud_file(const std::string& path, const CloudPoint* points, size_t n);
+
+// ---------------------------------------------------------------------------------------------
+// Plate fit
+
+// An oriented box in the world frame: centre and axes from T_world_box, half sizes along its axes.
+struct OrientedBox {
+  Eigen::Isometry3d T_world_box = Eigen::Isometry3d::Identity();
+  Eigen::Vector3d half_size_m = Eigen::Vector3d::Zero();
+  // Euclidean distance from the point to the box, 0 inside.
+  double distance_m(const Eigen::Vector3d& p_world_m) const;
+};
+
+// Where to look for one plate: its (approximate) pose and size, the margins that inflate its box into
+// the ROI, and the boxes of the other plates: a point nearer one of them than this plate's box is
+// theirs.
+struct PlateRoi {
+  Eigen::Isometry3d T_world_plate = Eigen::Isometry3d::Identity();
+  Eigen::Vector3d size_m = Eigen::Vector3d::Zero();
+  double margin_in_plane_m = 0.04;  // added to L/2 and W/2
+  double margin_normal_m = 0.02;    // added to T/2
+  std::vector<OrientedBox> others;
+};
+
+// How the points sample the surface (see "Edges" above).
+enum class CloudSampling { kRawPoints, kVoxelMeans };
+
+struct PlateFitConfig {
+  CloudSampling sampling = CloudSampling::kRawPoints;
+  double voxel_m = 0.0;  // kVoxelMeans: the grid's cell side (VoxelMapConfig::voxel_m)
+  // kVoxelMeans: the frame the voxel keys were computed in (floor(p_grid / voxel_m)): the map's
+  // frame, i.e. T_world_map when the points were moved into the world after voxelisation.
+  Eigen::Isometry3d T_world_grid = Eigen::Isometry3d::Identity();
+
+  double max_normal_angle_rad = 0.35;  // ~20 deg: face normal against the ROI's ±z
+  double plane_inlier_m = 0.005;       // RANSAC and refinement
+  int ransac_iterations = 300;
+  uint32_t seed = 1;          // RANSAC sampling is deterministic
+  int min_inliers = 50;       // fewer: not seen
+  double edge_band_m = 0.01;  // B of the band mean (3 B for the first 3 updates)
+  // B_out of the band mean: how far past the current edge points count (at least 3 plane RMS).
+  // Short, so that a surface a centimetre past the edge (the bench under a web) does not count.
+  double edge_band_out_m = 0.005;
+  double corner_margin_m = 0.03;  // edge samples this close to a corner are not used (>= 2 voxels)
+  int min_edge_samples = 5;       // points (band mean) or voxels (inversion) per edge; fewer: not seen
+  int max_iterations = 12;        // rectangle updates
+};
+
+struct PlateFit {
+  bool seen = false;
+  std::string reason;  // why not seen (too few points, an edge without samples)
+  int roi_points = 0;  // points in the ROI after exclusion
+  int inliers = 0;     // within plane_inlier_m of the fitted face
+  double plane_rms_m = 0;
+  // Outward unit normal of the fitted face (the plate's body is behind it) and a point on it.
+  Eigen::Vector3d normal_world = Eigen::Vector3d::UnitZ();
+  Eigen::Vector3d face_centre_world = Eigen::Vector3d::Zero();
+  int face_sign = 1;  // +1: the ROI's +z face (top of a base plate), -1: the -z face
+  double length_m = 0, width_m = 0;
+  // Face corners in the world frame, counter-clockwise about normal_world, starting at the corner
+  // at (-L/2, -W/2) of the fitted rectangle's axes (its length axis ~ the ROI's x).
+  std::array<Eigen::Vector3d, 4> corners_world{};
+  std::array<int, 4> edge_samples{};  // per edge (+x, +y, -x, -y of the ROI): points or voxels used
+  // kVoxelMeans: edges with fewer than min_edge_samples boundary voxels, left at their band-mean
+  // place (biased outward by up to half a voxel).
+  int edges_from_band_mean = 0;
+  // An edge ended at the ROI's boundary: the face could not be told from its surroundings there (a
+  // floor or bench as high as the face within the map's noise, a coplanar neighbour).
+  bool at_roi_limit = false;
+  int iterations = 0;
+};
+
+// Errors (kInvalidArgument): a non-positive ROI size or margin, a config value out of range
+// (kVoxelMeans without a positive voxel_m, thresholds not positive). A plate with too few points is
+// not an error: PlateFit::seen is false and reason says why.
+core::Expected<PlateFit> fit_plate(const CloudPoint* points, size_t n, const PlateRoi& roi,
+                                   const PlateFitConfig& config);
+
+// The ROI of plate i of the ground truth (4 cm in plane, 2 cm along the normal by default), with
+// every other plate of the file in PlateRoi::others.
+PlateRoi plate_roi_from_truth(const WeldGroundTruth& gt, size_t i, double margin_in_plane_m = 0.04,
+                              double margin_normal_m = 0.02);
+
+// ---------------------------------------------------------------------------------------------
+// Reconstruction error
+
+struct PlateAe {
+  std::string name;
+  bool seen = false;
+  std::string reason;
+  double length_m = 0, width_m = 0;  // fitted
+  double gt_length_m = 0, gt_width_m = 0;
+  double length_error_mm = 0, width_error_mm = 0;  // |fitted - ground truth|
+  // Each fitted corner against the nearest ground-truth corner of the fitted face (face_sign).
+  std::array<double, 4> corner_error_mm{};
+  double mean_corner_error_mm = 0;
+};
+
+struct AeReport {
+  std::vector<PlateAe> plates;  // ground-truth order
+  int plates_seen = 0;
+  int plates_total = 0;
+  double ae_mm = 0;         // mean of |dL| and |dW| over the plates seen; NaN when none is seen
+  double ae_corner_mm = 0;  // mean corner error over the plates seen; NaN when none is seen
+};
+
+// fits[i] is the fit of gt.plates[i]. Error (kInvalidArgument): sizes differ.
+core::Expected<AeReport> compute_ae(const std::vector<PlateFit>& fits, const WeldGroundTruth& gt);
+
+}  // namespace hwr::recon

@@ -1,0 +1,114 @@
+#include "hwr/recon/junction.hpp"
+
+#include <cmath>
+#include <vector>
+
+namespace hwr::recon {
+
+struct JunctionAligner::Impl {
+  Impl(const JunctionConfig& c, int max_features, NdtAligner n)
+      : config(c),
+        matcher(max_features, c.lsh),
+        ransac(max_features),
+        ndt(std::move(n)),
+        matches(static_cast<size_t>(max_features)),
+        correspondences(static_cast<size_t>(max_features)),
+        inlier_mask(static_cast<size_t>(max_features)) {}
+  JunctionConfig config;
+  estimation::LshMatcher matcher;
+  estimation::PoseRansac ransac;
+  NdtAligner ndt;
+  std::vector<estimation::FeatureMatch> matches;
+  std::vector<estimation::Correspondence> correspondences;
+  std::vector<uint8_t> inlier_mask;
+};
+
+JunctionAligner::JunctionAligner(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+JunctionAligner::JunctionAligner(JunctionAligner&&) noexcept = default;
+JunctionAligner& JunctionAligner::operator=(JunctionAligner&&) noexcept = default;
+JunctionAligner::~JunctionAligner() = default;
+
+core::Expected<JunctionAligner> JunctionAligner::create(const JunctionConfig& config, int max_features) {
+  if (max_features < 1) return core::InvalidArgument("junction: max_features must be >= 1");
+  if (config.min_orb_inliers < 3) return core::InvalidArgument("junction: min_orb_inliers must be >= 3");
+  auto ndt = NdtAligner::create(config.ndt);
+  if (!ndt.ok()) return ndt.status();
+  return JunctionAligner(std::make_unique<Impl>(config, max_features, std::move(ndt.value())));
+}
+
+JunctionResult JunctionAligner::align(const estimation::Keyframe& a, const estimation::Keyframe& b,
+                                      const hal::PinholeIntrinsics& K, const PointsView& cloud_a_cam,
+                                      const PointsView& cloud_b_cam,
+                                      const Eigen::Isometry3d& T_a_b_odometry) {
+  Impl& m = *impl_;
+  JunctionResult out;
+  out.T_a_b = T_a_b_odometry;
+
+  // ORB: b's features queried against an LSH index of a's (paper: "matching ORB keypoints between the
+  // last frame before segmentation and the first frame of the new map").
+  m.matcher.build(a.features);
+  const int n_matches = m.matcher.match(b.features, m.matches.data(), static_cast<int>(m.matches.size()));
+  out.orb_matches = n_matches;
+  int n = 0;
+  for (int i = 0; i < n_matches; ++i) {
+    const estimation::Feature& fa = a.features.feature(m.matches[static_cast<size_t>(i)].train);
+    const estimation::Feature& fb = b.features.feature(m.matches[static_cast<size_t>(i)].query);
+    if (!(fa.depth_m > 0)) continue;  // the 3D side of the correspondence is camera a's point
+    estimation::Correspondence& c = m.correspondences[static_cast<size_t>(n++)];
+    c.p_world = fa.p_cam_m;  // "world" of the solver = camera a
+    c.uv_px = {fb.u_px, fb.v_px};
+    c.depth_m = fb.depth_m;
+    c.octave = fb.octave;
+  }
+  if (n >= m.config.min_orb_inliers) {
+    const estimation::PoseRansacResult r =
+        m.ransac.solve(m.correspondences.data(), n, K, m.config.ransac, m.inlier_mask.data());
+    out.orb_inliers = r.ok ? r.inliers : 0;
+    if (r.ok && r.inliers >= m.config.min_orb_inliers) {
+      out.T_a_b = r.T_cam_world.inverse();  // solver gives T_b_a
+      out.seed = JunctionSeed::kOrb;
+    }
+  }
+  // RMS reprojection error in b of the ORB inliers (a's keypoints with depth) under a pose T_a_b.
+  auto orb_rms_px = [&](const Eigen::Isometry3d& T_a_b) {
+    const Eigen::Isometry3d T_b_a = T_a_b.inverse();
+    double sum = 0;
+    int used = 0;
+    for (int i = 0; i < n; ++i) {
+      if (!m.inlier_mask[static_cast<size_t>(i)]) continue;
+      const estimation::Correspondence& c = m.correspondences[static_cast<size_t>(i)];
+      const Eigen::Vector3d p_b = T_b_a * c.p_world;
+      if (!(p_b.z() > 0)) continue;
+      const double du = K.fx * p_b.x() / p_b.z() + K.cx - c.uv_px.x();
+      const double dv = K.fy * p_b.y() / p_b.z() + K.cy - c.uv_px.y();
+      sum += du * du + dv * dv;
+      ++used;
+    }
+    return used > 0 ? std::sqrt(sum / used) : 0.0;
+  };
+
+  // NDT of b's cloud (source) against a's (target), seeded by the ORB pose (paper: "initial parameters
+  // are fed into the NDT point cloud matching method").
+  out.ndt = m.ndt.align(cloud_a_cam, cloud_b_cam, out.T_a_b);
+  if (out.ndt.converged) {
+    const Eigen::Isometry3d delta = out.T_a_b.inverse() * out.ndt.T_target_source;
+    const double dt_m = delta.translation().norm();
+    const double dr_rad = Eigen::AngleAxisd(delta.linear()).angle();
+    bool agrees = std::isfinite(dt_m) && dt_m <= m.config.max_ndt_correction_m &&
+                  dr_rad <= m.config.max_ndt_correction_rad;
+    // Both measurements must agree: NDT's pose may not reproject the ORB inliers much worse than
+    // the ORB pose does (it would have slid along a direction the clouds do not constrain).
+    if (agrees && out.seed == JunctionSeed::kOrb) {
+      out.orb_rms_px = orb_rms_px(out.T_a_b);
+      out.ndt_orb_rms_px = orb_rms_px(out.ndt.T_target_source);
+      agrees = out.ndt_orb_rms_px <= m.config.max_ndt_reprojection_ratio * out.orb_rms_px + 0.1;
+    }
+    if (agrees) {
+      out.T_a_b = out.ndt.T_target_source;
+      out.ndt_used = true;
+    }
+  }
+  return out;
+}
+
+}  // namespace hwr::recon

@@ -1,0 +1,228 @@
+#include "hwr/recon/local_mapper.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <utility>
+
+#include "hwr/core/log.hpp"
+
+namespace hwr::recon {
+namespace {
+
+StoredKeyframe stored_keyframe(const estimation::Keyframe* kf, int id, const Eigen::Isometry3d& T_world_cam,
+                               int64_t t_ns) {
+  StoredKeyframe s;
+  s.id = id;
+  s.t_ns = t_ns;
+  s.T_world_cam = T_world_cam;
+  if (kf == nullptr) return s;
+  const int n = kf->features.size();
+  s.features.resize(static_cast<size_t>(n));
+  s.descriptors.resize(static_cast<size_t>(n) * estimation::kOrbDescriptorBytes);
+  for (int i = 0; i < n; ++i) {
+    const estimation::Feature& f = kf->features.feature(i);
+    StoredFeature& o = s.features[static_cast<size_t>(i)];
+    o.u_px = f.u_px;
+    o.v_px = f.v_px;
+    o.depth_m = f.depth_m;
+    o.octave = static_cast<uint8_t>(std::clamp(f.octave, 0, 255));
+    std::copy_n(kf->features.descriptor(i), estimation::kOrbDescriptorBytes,
+                s.descriptors.begin() + static_cast<ptrdiff_t>(i) * estimation::kOrbDescriptorBytes);
+  }
+  return s;
+}
+
+PointsView view_of(const KeyframeCloud& c) {
+  PointsView v;
+  v.xyz = c.size > 0 ? &c.points[0].x_m : nullptr;
+  v.n = c.size;
+  v.stride_floats = sizeof(CloudPoint) / sizeof(float);
+  return v;
+}
+
+uint8_t to_u8(float v) { return static_cast<uint8_t>(std::clamp(std::lround(v), 0L, 255L)); }
+
+}  // namespace
+
+LocalMapper::LocalMapper(const LocalMapperConfig& config, const hal::PinholeIntrinsics& K, VoxelMap map,
+                         JunctionAligner junction)
+    : config_(config),
+      K_(K),
+      map_(std::move(map)),
+      junction_(std::move(junction)),
+      cloud_arena_(
+          std::make_unique<core::Arena>(keyframe_cloud_capacity_bytes(K.width, K.height, config.cloud))) {
+  for (auto& a : junction_arena_)
+    a = std::make_unique<core::Arena>(
+        keyframe_cloud_capacity_bytes(K.width, K.height, config.junction_cloud));
+  segment_.keyframes.reserve(static_cast<size_t>(config.max_keyframes_per_segment));
+}
+
+LocalMapper::LocalMapper(LocalMapper&&) noexcept = default;
+LocalMapper& LocalMapper::operator=(LocalMapper&&) noexcept = default;
+LocalMapper::~LocalMapper() = default;
+
+core::Expected<LocalMapper> LocalMapper::create(const LocalMapperConfig& config,
+                                                const hal::PinholeIntrinsics& K, int max_features) {
+  if (!K.valid()) return core::InvalidArgument("local mapper: invalid intrinsics");
+  if (!(config.segment_max_travel_m > 0) || config.segment_max_points < 1 || config.keyframe_lag < 0 ||
+      config.max_keyframes_per_segment < 2) {
+    return core::InvalidArgument(
+        "local mapper: needs segment_max_travel_m > 0, segment_max_points >= 1, keyframe_lag >= 0, "
+        "max_keyframes_per_segment >= 2");
+  }
+  if (config.segment_max_points > config.voxels.max_voxels) {
+    return core::InvalidArgument(
+        "local mapper: segment_max_points (" + std::to_string(config.segment_max_points) +
+        ") exceeds the voxel map's capacity (" + std::to_string(config.voxels.max_voxels) + ")");
+  }
+  auto map = VoxelMap::create(config.voxels);
+  if (!map.ok()) return map.status();
+  // NDT's capacity: every sampled pixel of a junction cloud.
+  JunctionConfig junction_config = config.junction;
+  const int stride = std::max(1, config.junction_cloud.stride_px);
+  const int samples = ((K.width + stride - 1) / stride) * ((K.height + stride - 1) / stride);
+  junction_config.ndt.max_source_points = samples;
+  junction_config.ndt.max_target_points = samples;
+  auto junction = JunctionAligner::create(junction_config, max_features);
+  if (!junction.ok()) return junction.status();
+  return LocalMapper(config, K, std::move(map.value()), std::move(junction.value()));
+}
+
+void LocalMapper::update(const estimation::KeyframeStore& keyframes, SegmentSink* sink, bool flush) {
+  if (keyframes.empty()) return;
+  const int newest = keyframes.newest_id();
+  const int last = flush ? newest : newest - config_.keyframe_lag;
+  // A keyframe that left the ring before it was fused keeps nothing to fuse; start at the oldest.
+  next_id_ = std::max(next_id_, keyframes.oldest_id());
+  for (; next_id_ <= last; ++next_id_) fuse(keyframes, next_id_, sink);
+}
+
+void LocalMapper::finish(const estimation::KeyframeStore& keyframes, SegmentSink* sink) {
+  update(keyframes, sink, true);
+  if (segment_open_) close_segment(sink);
+}
+
+void LocalMapper::fuse(const estimation::KeyframeStore& keyframes, int id, SegmentSink* sink) {
+  const estimation::Keyframe* kf = keyframes.get(id);
+  const Eigen::Isometry3d T_world_cam = keyframes.pose(id);
+  const int64_t t_ns = kf != nullptr ? kf->t_ns : 0;
+  const cv::Mat* bgr = keyframes.bgr(id);
+  const cv::Mat* depth = keyframes.depth_m(id);
+  const bool have_images = depth != nullptr && !depth->empty();
+
+  // This keyframe's junction cloud (camera frame), kept until the next keyframe.
+  const int cur = 1 - junction_prev_;
+  junction_arena_[cur]->reset();
+  KeyframeCloud junction_cloud;
+  if (have_images) {
+    auto c = build_keyframe_cloud(cv::Mat(), *depth, K_, Eigen::Isometry3d::Identity(),
+                                  config_.junction_cloud, junction_arena_[cur].get());
+    if (c.ok())
+      junction_cloud = c.value();
+    else
+      ++counters_.cloud_errors;
+  }
+
+  JunctionRecord junction;
+  if (segment_open_) {
+    const double step_m = (T_world_cam.translation() - T_world_last_.translation()).norm();
+    const bool cut = segment_.travelled_m + step_m >= config_.segment_max_travel_m ||
+                     map_.size() >= config_.segment_max_points ||
+                     static_cast<int>(segment_.keyframes.size()) >= config_.max_keyframes_per_segment;
+    if (!cut) {
+      segment_.travelled_m += step_m;
+    } else {
+      // Junction between the last keyframe before the cut (a) and this one (b).
+      const estimation::Keyframe* a = keyframes.get(last_id_);
+      const Eigen::Isometry3d T_a_b_odometry = T_world_last_.inverse() * T_world_cam;
+      Eigen::Isometry3d T_a_b = T_a_b_odometry;
+      junction.keyframe_before = last_id_;
+      junction.keyframe_after = id;
+      if (a != nullptr && kf != nullptr) {
+        const auto t0 = std::chrono::steady_clock::now();
+        const JunctionResult r = junction_.align(*a, *kf, K_, view_of(junction_cloud_prev_),
+                                                 view_of(junction_cloud), T_a_b_odometry);
+        const double ms =
+            std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+        HWR_LOG_INFO("map",
+                     "junction %u: keyframes %d -> %d, orb %d/%d inliers (%s seed), ndt %s (%s, %d it, "
+                     "%d + %d points), orb rms %.2f px (ndt %.2f px), %.1f ms",
+                     next_segment_id_, last_id_, id, r.orb_inliers, r.orb_matches,
+                     r.seed == JunctionSeed::kOrb ? "orb" : "odometry", r.ndt_used ? "used" : "not used",
+                     r.ndt.converged ? "converged" : ndt_failure_name(r.ndt.failure), r.ndt.iterations,
+                     junction_cloud_prev_.size, junction_cloud.size, r.orb_rms_px, r.ndt_orb_rms_px, ms);
+        T_a_b = r.T_a_b;
+        junction.valid = r.seed == JunctionSeed::kOrb || r.ndt_used;
+        junction.orb_matches = r.orb_matches;
+        junction.orb_inliers = r.orb_inliers;
+        junction.ndt_converged = r.ndt.converged;
+        junction.ndt_iterations = r.ndt.iterations;
+        junction.ndt_fitness = r.ndt.fitness;
+        counters_.junctions_orb += r.seed == JunctionSeed::kOrb ? 1 : 0;
+        counters_.junctions_ndt += r.ndt_used ? 1 : 0;
+      }
+      const Eigen::Isometry3d T_prevseg_world = segment_.T_world_segment.inverse();
+      junction.T_prev_segment_segment = T_prevseg_world * T_world_last_ * T_a_b;
+      junction.T_prev_segment_segment_odometry = T_prevseg_world * T_world_cam;
+      close_segment(sink);
+    }
+  }
+  if (!segment_open_) {
+    segment_.segment_id = next_segment_id_++;
+    segment_.T_world_segment = T_world_cam;
+    segment_.junction = junction;
+    segment_.travelled_m = 0;
+    segment_.t_first_ns = t_ns;
+    segment_.keyframes.clear();
+    segment_.points_segment.clear();
+    map_.clear();
+    segment_open_ = true;
+  }
+  segment_.t_last_ns = t_ns;
+
+  if (have_images) {
+    cloud_arena_->reset();
+    const Eigen::Isometry3d T_segment_cam = segment_.T_world_segment.inverse() * T_world_cam;
+    auto c = build_keyframe_cloud(bgr != nullptr ? *bgr : cv::Mat(), *depth, K_, T_segment_cam, config_.cloud,
+                                  cloud_arena_.get());
+    if (c.ok())
+      map_.insert(c.value());
+    else
+      ++counters_.cloud_errors;
+  } else {
+    ++counters_.keyframes_without_images;
+  }
+  segment_.keyframes.push_back(stored_keyframe(kf, id, T_world_cam, t_ns));
+  ++counters_.keyframes_fused;
+
+  junction_prev_ = cur;
+  junction_cloud_prev_ = junction_cloud;
+  last_id_ = id;
+  T_world_last_ = T_world_cam;
+}
+
+void LocalMapper::close_segment(SegmentSink* sink) {
+  segment_.points_segment.clear();
+  segment_.points_segment.reserve(static_cast<size_t>(map_.size()));
+  map_.for_each([&](const Voxel& v) {
+    CloudPoint p;
+    p.x_m = v.x_m;
+    p.y_m = v.y_m;
+    p.z_m = v.z_m;
+    p.r = to_u8(v.r);
+    p.g = to_u8(v.g);
+    p.b = to_u8(v.b);
+    segment_.points_segment.push_back(p);
+  });
+  counters_.points_closed += segment_.points_segment.size();
+  ++counters_.segments_closed;
+  if (sink != nullptr) sink->take(std::move(segment_));
+  segment_ = SegmentRecord();
+  segment_.keyframes.reserve(static_cast<size_t>(config_.max_keyframes_per_segment));
+  map_.clear();
+  segment_open_ = false;
+}
+
+}  // namespace hwr::recon

@@ -1,0 +1,37 @@
+#include "hwr/recon/local_mapper_config.hpp"
+
+#include <vector>
+
+namespace hwr::recon {
+
+void read_local_mapper_config(core::ConfigMap map, LocalMapperConfig* c) {
+  map.get("voxel_m", &c->voxels.voxel_m)
+      .get("max_voxels", &c->voxels.max_voxels)
+      .get("segment_max_travel_m", &c->segment_max_travel_m)
+      .get("segment_max_points", &c->segment_max_points)
+      .get("keyframe_lag", &c->keyframe_lag);
+  core::ConfigMap cloud = map.child("cloud");
+  cloud.get("min_depth_m", &c->cloud.min_depth_m)
+      .get("max_depth_m", &c->cloud.max_depth_m)
+      .get("stride_px", &c->cloud.stride_px)
+      .get("max_depth_step", &c->cloud.max_depth_step);
+  core::ConfigMap junction = map.child("junction");
+  std::vector<double> resolutions;
+  junction.get("min_orb_inliers", &c->junction.min_orb_inliers)
+      .get("cloud_stride_px", &c->junction_cloud.stride_px)
+      .get("ndt_resolutions_m", &resolutions)
+      .get("ndt_outlier_ratio", &c->junction.ndt.outlier_ratio)
+      .get("ndt_max_iterations", &c->junction.ndt.max_iterations)
+      .get("max_ndt_correction_m", &c->junction.max_ndt_correction_m)
+      .get("max_ndt_correction_rad", &c->junction.max_ndt_correction_rad);
+  if (junction.has("ndt_resolutions_m")) {
+    if (resolutions.empty() || resolutions.size() > c->junction.ndt.resolutions_m.size()) {
+      junction.record_error("ndt_resolutions_m", "expected 1 to 4 voxel sides, coarse to fine");
+    } else {
+      c->junction.ndt.resolutions_m.fill(0.0);
+      for (size_t i = 0; i < resolutions.size(); ++i) c->junction.ndt.resolutions_m[i] = resolutions[i];
+    }
+  }
+}
+
+}  // namespace hwr::recon
