@@ -360,6 +360,17 @@ int run(const Args& args) {
       std::fprintf(stderr, "hwr-robot: --map-out: %s\n", store.status().message().c_str());
       return 1;
     }
+    // A store holds one run: its segment ids start at 0 (a prior map is read with --prior-map,
+    // issue #6).
+    auto existing = store->list_segments();
+    if (!existing.ok() || !existing->empty()) {
+      const std::string what =
+          existing.ok() ? std::to_string(existing->size()) + " segments of run " + store->metadata().run_id
+                        : existing.status().message();
+      std::fprintf(stderr, "hwr-robot: --map-out: %s already holds %s; give a new directory\n",
+                   args.map_out.c_str(), what.c_str());
+      return 1;
+    }
     store_writer = std::make_unique<hwr::recon::StoreSegmentWriter>(std::move(store.value()));
     segments.writer = store_writer.get();
   }

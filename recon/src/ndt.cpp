@@ -548,8 +548,10 @@ void finish(const NdtConfig& config, const Evaluation& cur, const Eigen::Vector3
 bool NdtAligner::Impl::level(const NdtTarget::Impl& tg, const PointsView& source, const SourceStats& stats,
                              double epsilon_scale, Evaluation* cur, Eigen::Vector3d* pivot,
                              NdtResult* result) {
+  // A failing level fails the whole alignment, whatever the coarser levels reached.
   if (tg.gaussian_count < 2) {
     result->T_target_source = cur->T;
+    result->converged = false;
     result->failure = NdtFailure::kTooFewTargetVoxels;
     return false;
   }
@@ -559,6 +561,7 @@ bool NdtAligner::Impl::level(const NdtTarget::Impl& tg, const PointsView& source
   NdtFailure failure = NdtFailure::kNone;
   if (!run_level(tg, source, *pivot, epsilon_scale, cur, &result->iterations, &converged, &failure)) {
     result->T_target_source = cur->T;
+    result->converged = false;
     result->failure = failure;
     return false;
   }
@@ -603,6 +606,7 @@ NdtResult NdtAligner::align(const PointsView& target, const PointsView& source,
     if (resolution == 0.0) break;
     if (!impl_->target.build(target, resolution).ok()) {  // capacity: the only error a valid view can give
       result.T_target_source = cur.T;
+      result.converged = false;
       result.failure = NdtFailure::kInvalidInput;
       return result;
     }

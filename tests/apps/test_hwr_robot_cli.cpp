@@ -68,6 +68,37 @@ TEST(HwrRobotCli, GivenTrajAndTimingOutputsWhenRunOnTeddyThenBothFilesHoldEveryT
   std::filesystem::remove_all(dir);
 }
 
+TEST(HwrRobotCli, GivenMapOutputsWhenRunOnTeddyThenTheStoreAndCloudHoldTheMapAndAreNotOverwritten) {
+  ASSERT_TRUE(std::filesystem::is_directory(kTeddy)) << "dataset folder missing: " << kTeddy;
+  const std::string dir = ::testing::TempDir() + "hwr_robot_map_" + std::to_string(::getpid());
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  const std::string args =
+      "--source tum:" + kTeddy + " --quiet --map-out " + dir + "/store --cloud-out " + dir + "/cloud.bin";
+  const CliRun r = run_robot(args);
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  // Teddy's close-up views pass the 5x10^5-voxel threshold once: two segments, one junction.
+  EXPECT_NE(r.out.find("map: segments=2 "), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("junction 1: keyframes"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("map store: 2 segments written (0 failed"), std::string::npos) << r.out;
+  EXPECT_TRUE(std::filesystem::exists(dir + "/store/store.yaml"));
+  // The world cloud holds the segments' points: each cloud.bin is a 48-byte header and its points.
+  uintmax_t segment_point_bytes = 0;
+  for (const char* seg : {"seg_000000", "seg_000001"}) {
+    const std::string path = dir + "/store/segments/" + seg + "/cloud.bin";
+    ASSERT_TRUE(std::filesystem::exists(path)) << path;
+    segment_point_bytes += std::filesystem::file_size(path) - 48u;
+  }
+  const auto cloud_bytes = std::filesystem::file_size(dir + "/cloud.bin");
+  EXPECT_GT(cloud_bytes, 16u * 100'000u);
+  EXPECT_EQ(cloud_bytes, segment_point_bytes);
+  // A second run into the same store is refused before anything is written.
+  const CliRun again = run_robot(args);
+  EXPECT_EQ(again.exit_code, 1) << again.out;
+  EXPECT_NE(again.out.find("already holds 2 segments"), std::string::npos) << again.out;
+  std::filesystem::remove_all(dir);
+}
+
 TEST(HwrRobotCli, GivenABadFaultSpecThenItNamesTheTokenAndExitCode2) {
   const CliRun r = run_robot("--source tum:" + kTeddy + " --faults dropout=3:-1");
   EXPECT_EQ(r.exit_code, 2);

@@ -255,6 +255,19 @@ TEST(Ndt, GivenATargetInsideOneVoxelThenTooFewTargetVoxels) {
   EXPECT_TRUE(r.T_target_source.matrix().allFinite());
 }
 
+TEST(Ndt, GivenAFinestLevelWithoutGaussiansThenNotConvergedWhateverTheCoarserLevelsReached) {
+  // 8 cm spacing: the 1 m and 0.5 m levels converge, 2 cm voxels hold one point each.
+  const Pair p = room_pair(0.08, pose({0.1, -0.05, 0.0}, {0.0, 0.0, 2 * kDeg}));
+  NdtConfig config;
+  config.resolutions_m = {1.0, 0.5, 0.02, 0.0};
+  NdtAligner ndt = make_aligner(config);
+  const NdtResult r = ndt.align(p.target.view(), p.source.view(), Eigen::Isometry3d::Identity());
+  EXPECT_FALSE(r.converged);
+  EXPECT_EQ(r.failure, NdtFailure::kTooFewTargetVoxels);
+  EXPECT_EQ(r.levels, 2);
+  EXPECT_TRUE(r.T_target_source.matrix().allFinite());
+}
+
 TEST(Ndt, GivenASinglePlaneThenDegenerate) {
   Cloud target;
   const Eigen::Matrix3d R = core::so3_exp(Eigen::Vector3d(0.3, -0.2, 0.5));
