@@ -72,6 +72,7 @@ struct SegmentSummary {
   int64_t t_last_ns = 0;
   std::vector<recon::CloudPoint> points_segment;
   double rss_mib_at_close = 0;
+  bool after_run = false;  // closed by the end-of-run flush, after the full bundle adjustment
 };
 
 // Oriented boxes around the weld plates (world frame), inflated: the bench keeps only the map points
@@ -85,6 +86,7 @@ class BenchSink final : public recon::SegmentSink {
  public:
   recon::StoreSegmentWriter* writer = nullptr;
   std::vector<PlateRoi> rois;
+  bool run_ended = false;
   std::vector<SegmentSummary> segments;
   void take(recon::SegmentRecord&& seg) override {
     SegmentSummary s;
@@ -112,6 +114,7 @@ class BenchSink final : public recon::SegmentSink {
     }
     if (writer != nullptr) writer->take(std::move(seg));
     s.rss_mib_at_close = rss_mib();
+    s.after_run = run_ended;
     segments.push_back(std::move(s));
   }
 };
@@ -240,7 +243,10 @@ int run_segmentation(int argc, char** argv) {
       if (mapper->counters().keyframes_fused != fused) map_ms_at_points.emplace_back(ms, total);
       total_points_at_frame.push_back(total);
     };
-    opt.at_end = [&](const estimation::PoseEstimator& e) { mapper->finish(e.tracker().keyframes(), &sink); };
+    opt.at_end = [&](const estimation::PoseEstimator& e) {
+      sink.run_ended = true;
+      mapper->finish(e.tracker().keyframes(), &sink);
+    };
     auto run = estimation::run_offline(seq->log, opt);
     if (!run.ok()) {
       std::fprintf(stderr, "hwr-bench segmentation: %s: %s\n", name.c_str(), run.status().message().c_str());
@@ -363,10 +369,11 @@ int run_segmentation(int argc, char** argv) {
                   mean(odometry_mm));
     keys.push_back(line);
     if (segs.size() >= 3) {
-      // Closes during the run; the last one comes after the end-of-run full bundle adjustment, whose
-      // problem is allocated then and is not the mapper's.
+      // Closes during the run; those of the end-of-run flush come after the full bundle adjustment,
+      // whose problem is allocated then and is not the mapper's.
       double peak = 0;
-      for (size_t s = 1; s + 1 < segs.size(); ++s) peak = std::max(peak, segs[s].rss_mib_at_close);
+      for (size_t s = 1; s < segs.size(); ++s)
+        if (!segs[s].after_run) peak = std::max(peak, segs[s].rss_mib_at_close);
       std::snprintf(line, sizeof(line), "rss_growth_pct_%s=%.2f", name.c_str(),
                     100.0 * (peak - segs[0].rss_mib_at_close) / segs[0].rss_mib_at_close);
       keys.push_back(line);
