@@ -33,6 +33,7 @@
 #include "hwr/recon/local_mapper.hpp"
 #include "hwr/recon/local_mapper_config.hpp"
 #include "hwr/recon/map_store.hpp"
+#include "hwr/recon/plate_fit.hpp"
 #include "hwr/recon/segment_writer.hpp"
 #if HWR_WITH_SIM
 #include "hwr/sim/scenario.hpp"
@@ -511,9 +512,8 @@ int run(const Args& args) {
       if (w.failed > 0) rc = 1;
     }
     if (!args.cloud_out.empty()) {
-      std::string bytes(reinterpret_cast<const char*>(segments.cloud_world.data()),
-                        segments.cloud_world.size() * sizeof(hwr::recon::CloudPoint));
-      const hwr::core::Status ws = hwr::core::write_file_atomic(args.cloud_out, bytes);
+      const hwr::core::Status ws = hwr::recon::write_cloud_file(args.cloud_out, segments.cloud_world.data(),
+                                                                segments.cloud_world.size());
       if (!ws.ok()) {
         std::fprintf(stderr, "hwr-robot: --cloud-out: %s\n", ws.message().c_str());
         rc = 1;

@@ -1,5 +1,7 @@
 #include "map_store_files.hpp"
 
+#include "hwr/core/file_io.hpp"
+
 #include <fcntl.h>
 #include <sys/stat.h>
 #include <unistd.h>
@@ -18,20 +20,7 @@ core::Status write_file_synced(const std::string& path, const ByteSpan* spans, s
   const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
   if (fd < 0) return core::IoError(path + ": cannot create: " + errno_text(errno));
   int err = 0;
-  for (size_t s = 0; s < n_spans && err == 0; ++s) {
-    const char* p = static_cast<const char*>(spans[s].data);
-    size_t left = spans[s].size;
-    while (left > 0) {
-      const ssize_t n = ::write(fd, p, left);
-      if (n < 0) {
-        if (errno == EINTR) continue;
-        err = errno;
-        break;
-      }
-      p += n;
-      left -= static_cast<size_t>(n);
-    }
-  }
+  for (size_t s = 0; s < n_spans && err == 0; ++s) err = core::write_all_fd(fd, spans[s].data, spans[s].size);
   // The data must be on disk before the directory holding it is renamed into place.
   if (err == 0 && ::fsync(fd) != 0) err = errno;
   if (::close(fd) != 0 && err == 0) err = errno;

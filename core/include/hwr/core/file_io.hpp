@@ -1,6 +1,7 @@
 #pragma once
 // Whole-file reads and crash-safe whole-file writes, with errors that name the path.
 
+#include <cstddef>
 #include <string>
 #include <vector>
 
@@ -16,5 +17,9 @@ Status read_file(const std::string& path, std::string* out);
 // file under the final name.
 Status write_file_atomic(const std::string& path, const std::string& bytes);
 Status write_file_atomic(const std::string& path, const std::vector<unsigned char>& bytes);
+
+// Writes all `size` bytes to an open file descriptor, retrying short writes and EINTR. Returns 0,
+// or the errno of the failed write.
+int write_all_fd(int fd, const void* data, size_t size);
 
 }  // namespace hwr::core
