@@ -43,6 +43,19 @@ PointsView view_of(const KeyframeCloud& c) {
 
 uint8_t to_u8(float v) { return static_cast<uint8_t>(std::clamp(std::lround(v), 0L, 255L)); }
 
+CloudPoint point_of(const Voxel& v) {
+  CloudPoint p;
+  p.x_m = v.x_m;
+  p.y_m = v.y_m;
+  p.z_m = v.z_m;
+  p.r = to_u8(v.r);
+  p.g = to_u8(v.g);
+  p.b = to_u8(v.b);
+  return p;
+}
+
+constexpr size_t kStreamBatch = 65'536;  // points per MapStreamSink call at most
+
 }  // namespace
 
 LocalMapper::LocalMapper(const LocalMapperConfig& config, const hal::PinholeIntrinsics& K, VoxelMap map,
@@ -57,6 +70,9 @@ LocalMapper::LocalMapper(const LocalMapperConfig& config, const hal::PinholeIntr
     a = std::make_unique<core::Arena>(
         keyframe_cloud_capacity_bytes(K.width, K.height, config.junction_cloud));
   segment_.keyframes.reserve(static_cast<size_t>(config.max_keyframes_per_segment));
+  map_size_after_kf_.assign(static_cast<size_t>(config.stream_lag_keyframes) + 1, 0);
+  stream_points_.resize(kStreamBatch);
+  stream_ids_.resize(kStreamBatch);
 }
 
 LocalMapper::LocalMapper(LocalMapper&&) noexcept = default;
@@ -67,10 +83,11 @@ core::Expected<LocalMapper> LocalMapper::create(const LocalMapperConfig& config,
                                                 const hal::PinholeIntrinsics& K, int max_features) {
   if (!K.valid()) return core::InvalidArgument("local mapper: invalid intrinsics");
   if (!(config.segment_max_travel_m > 0) || config.segment_max_points < 1 || config.keyframe_lag < 0 ||
-      config.max_keyframes_per_segment < 2) {
+      config.max_keyframes_per_segment < 2 || config.stream_lag_keyframes < 0 ||
+      config.stream_min_points < 1) {
     return core::InvalidArgument(
         "local mapper: needs segment_max_travel_m > 0, segment_max_points >= 1, keyframe_lag >= 0, "
-        "max_keyframes_per_segment >= 2");
+        "max_keyframes_per_segment >= 2, stream_lag_keyframes >= 0, stream_min_points >= 1");
   }
   if (config.segment_max_points > config.voxels.max_voxels) {
     return core::InvalidArgument(
@@ -137,7 +154,7 @@ void LocalMapper::fuse(const estimation::KeyframeStore& keyframes, int id, Segme
       // Junction between the last keyframe before the cut (a) and this one (b).
       const estimation::Keyframe* a = keyframes.get(last_id_);
       const Eigen::Isometry3d T_a_b_odometry = T_world_last_.inverse() * T_world_cam;
-      Eigen::Isometry3d T_a_b = T_a_b_odometry;
+      Eigen::Isometry3d T_a_b = T_a_b_odometry, T_a_b_measured = T_a_b_odometry;
       junction.keyframe_before = last_id_;
       junction.keyframe_after = id;
       if (a != nullptr && kf != nullptr) {
@@ -148,12 +165,15 @@ void LocalMapper::fuse(const estimation::KeyframeStore& keyframes, int id, Segme
             std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
         HWR_LOG_INFO("map",
                      "junction %u: keyframes %d -> %d, orb %d/%d inliers (%s seed), ndt %s (%s, %d it, "
-                     "%d + %d points), orb rms %.2f px (ndt %.2f px), %.1f ms",
+                     "%d + %d points), orb rms %.2f px (ndt %.2f px), odometry %s (chi2 %.1f), %.1f ms",
                      next_segment_id_, last_id_, id, r.orb_inliers, r.orb_matches,
                      r.seed == JunctionSeed::kOrb ? "orb" : "odometry", r.ndt_used ? "used" : "not used",
                      r.ndt.converged ? "converged" : ndt_failure_name(r.ndt.failure), r.ndt.iterations,
-                     junction_cloud_prev_.size, junction_cloud.size, r.orb_rms_px, r.ndt_orb_rms_px, ms);
+                     junction_cloud_prev_.size, junction_cloud.size, r.orb_rms_px, r.ndt_orb_rms_px,
+                     r.fused ? "fused" : "not fused", r.fusion_chi2, ms);
         T_a_b = r.T_a_b;
+        T_a_b_measured = r.T_a_b_measured;
+        junction.fused = r.fused;
         junction.valid = r.seed == JunctionSeed::kOrb || r.ndt_used;
         junction.orb_matches = r.orb_matches;
         junction.orb_inliers = r.orb_inliers;
@@ -166,6 +186,7 @@ void LocalMapper::fuse(const estimation::KeyframeStore& keyframes, int id, Segme
       const Eigen::Isometry3d T_prevseg_world = segment_.T_world_segment.inverse();
       junction.T_prev_segment_segment = T_prevseg_world * T_world_last_ * T_a_b;
       junction.T_prev_segment_segment_odometry = T_prevseg_world * T_world_cam;
+      junction.T_prev_segment_segment_measured = T_prevseg_world * T_world_last_ * T_a_b_measured;
       close_segment(sink);
     }
   }
@@ -197,25 +218,44 @@ void LocalMapper::fuse(const estimation::KeyframeStore& keyframes, int id, Segme
   segment_.keyframes.push_back(stored_keyframe(kf, id, T_world_cam, t_ns));
   ++counters_.keyframes_fused;
 
+  if (stream_sink_ != nullptr) {
+    // Voxels made at least stream_lag_keyframes keyframes ago are ready.
+    const size_t ring = map_size_after_kf_.size();
+    map_size_after_kf_[static_cast<size_t>(keyframes_in_segment_) % ring] = map_.size();
+    ++keyframes_in_segment_;
+    if (keyframes_in_segment_ >= static_cast<int>(ring)) {
+      const int ready = map_size_after_kf_[static_cast<size_t>(keyframes_in_segment_) % ring];
+      if (ready - streamed_voxels_ >= config_.stream_min_points) stream_voxels(ready, false);
+    }
+  }
+
   junction_prev_ = cur;
   junction_cloud_prev_ = junction_cloud;
   last_id_ = id;
   T_world_last_ = T_world_cam;
 }
 
+void LocalMapper::stream_voxels(int upto, bool segment_complete) {
+  do {
+    const int n = std::min(upto - streamed_voxels_, static_cast<int>(kStreamBatch));
+    for (int i = 0; i < n; ++i) {
+      const uint32_t slot = map_.created(streamed_voxels_ + i);
+      stream_points_[static_cast<size_t>(i)] = point_of(map_.at_slot(slot));
+      stream_ids_[static_cast<size_t>(i)] = slot;
+    }
+    streamed_voxels_ += n;
+    stream_sink_->stream(segment_.segment_id, segment_.T_world_segment, stream_points_.data(),
+                         stream_ids_.data(), n, segment_complete && streamed_voxels_ == upto);
+  } while (streamed_voxels_ < upto);
+}
+
 void LocalMapper::close_segment(SegmentSink* sink) {
+  if (stream_sink_ != nullptr) stream_voxels(map_.size(), true);
+  streamed_voxels_ = 0;
+  keyframes_in_segment_ = 0;
   segment_.points_segment.clear();
   segment_.points_segment.reserve(static_cast<size_t>(map_.size()));
-  map_.for_each([&](const Voxel& v) {
-    CloudPoint p;
-    p.x_m = v.x_m;
-    p.y_m = v.y_m;
-    p.z_m = v.z_m;
-    p.r = to_u8(v.r);
-    p.g = to_u8(v.g);
-    p.b = to_u8(v.b);
-    segment_.points_segment.push_back(p);
-  });
+  map_.for_each([&](const Voxel& v) { segment_.points_segment.push_back(point_of(v)); });
   counters_.points_closed += segment_.points_segment.size();
   ++counters_.segments_closed;
   if (sink != nullptr) sink->take(std::move(segment_));

@@ -9,7 +9,9 @@ void read_local_mapper_config(core::ConfigMap map, LocalMapperConfig* c) {
       .get("max_voxels", &c->voxels.max_voxels)
       .get("segment_max_travel_m", &c->segment_max_travel_m)
       .get("segment_max_points", &c->segment_max_points)
-      .get("keyframe_lag", &c->keyframe_lag);
+      .get("keyframe_lag", &c->keyframe_lag)
+      .get("stream_lag_keyframes", &c->stream_lag_keyframes)
+      .get("stream_min_points", &c->stream_min_points);
   core::ConfigMap cloud = map.child("cloud");
   cloud.get("min_depth_m", &c->cloud.min_depth_m)
       .get("max_depth_m", &c->cloud.max_depth_m)
@@ -23,7 +25,12 @@ void read_local_mapper_config(core::ConfigMap map, LocalMapperConfig* c) {
       .get("ndt_outlier_ratio", &c->junction.ndt.outlier_ratio)
       .get("ndt_max_iterations", &c->junction.ndt.max_iterations)
       .get("max_ndt_correction_m", &c->junction.max_ndt_correction_m)
-      .get("max_ndt_correction_rad", &c->junction.max_ndt_correction_rad);
+      .get("max_ndt_correction_rad", &c->junction.max_ndt_correction_rad)
+      .get("fuse_odometry", &c->junction.fuse_odometry)
+      .get("odometry_sigma_rad", &c->junction.odometry_sigma_rad)
+      .get("odometry_sigma_m", &c->junction.odometry_sigma_m)
+      .get("orb_covariance_scale", &c->junction.orb_covariance_scale)
+      .get("fusion_gate_chi2", &c->junction.fusion_gate_chi2);
   if (junction.has("ndt_resolutions_m")) {
     if (resolutions.empty() || resolutions.size() > c->junction.ndt.resolutions_m.size()) {
       junction.record_error("ndt_resolutions_m", "expected 1 to 4 voxel sides, coarse to fine");

@@ -303,6 +303,8 @@ std::string segment_yaml_text(const SegmentRecord& s, uint64_t keyframes_bin_byt
   t += "  ndt_fitness: " + yaml_double(j.ndt_fitness) + "\n";
   t += "  T_prev_segment_segment: " + yaml_pose(j.T_prev_segment_segment) + "\n";
   t += "  T_prev_segment_segment_odometry: " + yaml_pose(j.T_prev_segment_segment_odometry) + "\n";
+  t += "  T_prev_segment_segment_measured: " + yaml_pose(j.T_prev_segment_segment_measured) + "\n";
+  appendf(&t, "  fused: %s\n", j.fused ? "true" : "false");
   appendf(&t, "keyframes_bin_bytes: %" PRIu64 "\nkeyframes_bin_crc32: %" PRIu32 "\n", keyframes_bin_bytes,
           keyframes_crc32);
   appendf(&t, "cloud_bin_bytes: %" PRIu64 "\ncloud_bin_crc32: %" PRIu32 "\n", cloud_bin_bytes, cloud_crc32);
@@ -368,6 +370,8 @@ core::Expected<SegmentYaml> read_segment_yaml(const std::string& path) {
   j.require("ndt_fitness", &jr.ndt_fitness);
   read_pose(j, "T_prev_segment_segment", &jr.T_prev_segment_segment);
   read_pose(j, "T_prev_segment_segment_odometry", &jr.T_prev_segment_segment_odometry);
+  read_pose(j, "T_prev_segment_segment_measured", &jr.T_prev_segment_segment_measured);
+  j.require("fused", &jr.fused);
   root.require("keyframes_bin_bytes", &y.keyframes_bin_bytes);
   read_u32(root, "keyframes_bin_crc32", &y.keyframes_bin_crc32);
   root.require("cloud_bin_bytes", &y.cloud_bin_bytes);

@@ -38,6 +38,7 @@ VoxelMap::VoxelMap(const VoxelMapConfig& config) : config_(config), inv_voxel_(1
   while (slots < 2 * static_cast<size_t>(config.max_voxels)) slots <<= 1;  // load factor <= 0.5
   keys_.assign(slots, kEmpty);
   voxels_.assign(slots, Voxel{});
+  created_.assign(static_cast<size_t>(config.max_voxels), 0);
   mask_ = slots - 1;
 }
 
@@ -72,6 +73,7 @@ void VoxelMap::insert(const CloudPoint* points, int n) {
       }
       keys_[s] = key;
       v = Voxel{};
+      created_[static_cast<size_t>(size_)] = static_cast<uint32_t>(s);
       ++size_;
       ++counters_.voxels_created;
     } else {

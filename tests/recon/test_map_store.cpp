@@ -152,6 +152,8 @@ SegmentRecord make_segment(uint32_t id, int n_keyframes, int n_points) {
   j.ndt_fitness = 0.01 + 0.001 * u(rng);
   j.T_prev_segment_segment = random_pose(&rng);
   j.T_prev_segment_segment_odometry = random_pose(&rng);
+  j.T_prev_segment_segment_measured = random_pose(&rng);
+  j.fused = id % 2 == 0;
   for (int k = 0; k < n_keyframes; ++k) {
     StoredKeyframe kf;
     kf.id = static_cast<int32_t>(10 * id) + k;
@@ -202,13 +204,17 @@ std::string first_difference(const SegmentRecord& a, const SegmentRecord& b) {
   if (ja.valid != jb.valid || ja.keyframe_before != jb.keyframe_before ||
       ja.keyframe_after != jb.keyframe_after || ja.orb_matches != jb.orb_matches ||
       ja.orb_inliers != jb.orb_inliers || ja.ndt_converged != jb.ndt_converged ||
-      ja.ndt_iterations != jb.ndt_iterations || !same_bits(ja.ndt_fitness, jb.ndt_fitness)) {
+      ja.ndt_iterations != jb.ndt_iterations || !same_bits(ja.ndt_fitness, jb.ndt_fitness) ||
+      ja.fused != jb.fused) {
     return "junction scalars";
   }
   if (!same_pose(ja.T_prev_segment_segment, jb.T_prev_segment_segment))
     return "junction.T_prev_segment_segment";
   if (!same_pose(ja.T_prev_segment_segment_odometry, jb.T_prev_segment_segment_odometry)) {
     return "junction.T_prev_segment_segment_odometry";
+  }
+  if (!same_pose(ja.T_prev_segment_segment_measured, jb.T_prev_segment_segment_measured)) {
+    return "junction.T_prev_segment_segment_measured";
   }
   if (a.keyframes.size() != b.keyframes.size()) return "keyframes.size()";
   for (size_t k = 0; k < a.keyframes.size(); ++k) {

@@ -1,6 +1,6 @@
 // The voxel map (issue #4 item 2). Oracles: points in one voxel merge into their exact mean;
 // voxel boundaries at negative coordinates follow floor(); a full map refuses new voxels and
-// counts them; inserting allocates nothing.
+// counts them; creation order names slots that never move; inserting allocates nothing.
 
 #include <cmath>
 #include <limits>
@@ -39,6 +39,29 @@ TEST(VoxelMap, GivenPointsInOneVoxelThenTheyMergeIntoTheirMean) {
   EXPECT_NEAR(v->r, 100.0, 1e-4);
   EXPECT_EQ(map->counters().voxels_created, 1u);
   EXPECT_EQ(map->counters().points_merged, 2u);
+}
+
+TEST(VoxelMap, GivenInsertionsThenCreationOrderNamesStableSlots) {
+  auto map = VoxelMap::create({0.1, 100});
+  ASSERT_TRUE(map.ok());
+  const std::vector<CloudPoint> first = {pt(0.35f, 0.05f, 0.05f), pt(-0.25f, 0.05f, 0.05f)};
+  map->insert(first.data(), 2);
+  const uint32_t s0 = map->created(0), s1 = map->created(1);
+  // Merging into old voxels and making new ones leaves the first slots where they were.
+  const std::vector<CloudPoint> more = {pt(0.36f, 0.06f, 0.06f), pt(5.05f, 0.05f, 0.05f),
+                                        pt(-0.26f, 0.0f, 0.0f)};
+  map->insert(more.data(), 3);
+  ASSERT_EQ(map->size(), 3);
+  EXPECT_EQ(map->created(0), s0);
+  EXPECT_EQ(map->created(1), s1);
+  EXPECT_EQ(&map->at_slot(s0), map->find(Eigen::Vector3d(0.35, 0.05, 0.05)));
+  EXPECT_EQ(&map->at_slot(s1), map->find(Eigen::Vector3d(-0.25, 0.05, 0.05)));
+  EXPECT_EQ(&map->at_slot(map->created(2)), map->find(Eigen::Vector3d(5.05, 0.05, 0.05)));
+  EXPECT_EQ(map->at_slot(s0).count, 2u);
+  map->clear();
+  map->insert(more.data() + 1, 1);
+  ASSERT_EQ(map->size(), 1);
+  EXPECT_EQ(&map->at_slot(map->created(0)), map->find(Eigen::Vector3d(5.05, 0.05, 0.05)));
 }
 
 TEST(VoxelMap, GivenPointsAcrossZeroThenVoxelsFollowFloor) {

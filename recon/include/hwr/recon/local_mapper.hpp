@@ -15,6 +15,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <vector>
 
 #include <Eigen/Geometry>
 
@@ -35,6 +36,20 @@ class SegmentSink {
   virtual void take(SegmentRecord&& segment) = 0;
 };
 
+// Receives the active local map while it fills, for streaming to the ground station (mapio): voxels
+// in creation order, each sent once, `stream_lag_keyframes` keyframes after it was made (by then
+// the camera has moved on and the voxel's mean has settled), in batches of at least
+// `stream_min_points`; the rest when the segment closes, with segment_complete set (n may be 0).
+// Points are in the segment frame; ids are voxel slots, unique within a segment. Called on the
+// mapping task: must not block; the arrays are valid only during the call.
+class MapStreamSink {
+ public:
+  virtual ~MapStreamSink() = default;
+  virtual void stream(uint32_t segment_id, const Eigen::Isometry3d& T_world_segment,
+                      const CloudPoint* points_segment, const uint32_t* voxel_ids, int n,
+                      bool segment_complete) = 0;
+};
+
 struct LocalMapperConfig {
   KeyframeCloudConfig cloud;                                 // map points (stride 2)
   VoxelMapConfig voxels{0.02, 1'000'000};                    // the active local map
@@ -44,6 +59,8 @@ struct LocalMapperConfig {
   KeyframeCloudConfig junction_cloud{0.2f, 8.0f, 2, 0.05f};  // the NDT clouds of a junction
   JunctionConfig junction;
   int max_keyframes_per_segment = 4096;
+  int stream_lag_keyframes = 5;  // MapStreamSink: a voxel is streamed this many keyframes after its creation
+  int stream_min_points = 20'000;  // ... in batches of at least this many (except at a segment close)
 };
 
 struct LocalMapperCounters {
@@ -73,6 +90,8 @@ class LocalMapper {
   uint32_t active_segment_id() const { return segment_.segment_id; }
   double active_travel_m() const { return segment_.travelled_m; }
   const LocalMapperConfig& config() const { return config_; }
+  // Optional; not owned. Set before the first update().
+  void set_stream_sink(MapStreamSink* sink) { stream_sink_ = sink; }
 
   LocalMapper(LocalMapper&&) noexcept;
   LocalMapper& operator=(LocalMapper&&) noexcept;
@@ -83,6 +102,8 @@ class LocalMapper {
               JunctionAligner junction);
   void fuse(const estimation::KeyframeStore& keyframes, int id, SegmentSink* sink);
   void close_segment(SegmentSink* sink);
+  // Streams created voxels [streamed_voxels_, upto) of the active map.
+  void stream_voxels(int upto, bool segment_complete);
 
   LocalMapperConfig config_;
   hal::PinholeIntrinsics K_;
@@ -99,6 +120,12 @@ class LocalMapper {
   Eigen::Isometry3d T_world_last_ = Eigen::Isometry3d::Identity();
   uint32_t next_segment_id_ = 0;
   LocalMapperCounters counters_;
+  MapStreamSink* stream_sink_ = nullptr;
+  int streamed_voxels_ = 0;             // of the active map, in creation order
+  std::vector<int> map_size_after_kf_;  // ring: map size after each of the last lag+1 keyframes
+  int keyframes_in_segment_ = 0;
+  std::vector<CloudPoint> stream_points_;  // batch buffers, sized in the constructor
+  std::vector<uint32_t> stream_ids_;
 };
 
 }  // namespace hwr::recon

@@ -67,6 +67,9 @@ struct JunctionRecord {
   Eigen::Isometry3d T_prev_segment_segment = Eigen::Isometry3d::Identity();
   // The estimator's (odometry) value of the same, for comparison.
   Eigen::Isometry3d T_prev_segment_segment_odometry = Eigen::Isometry3d::Identity();
+  // The ORB/NDT measurement alone (before fusion with the odometry), and whether it was fused.
+  Eigen::Isometry3d T_prev_segment_segment_measured = Eigen::Isometry3d::Identity();
+  bool fused = false;
 };
 
 struct SegmentRecord {

@@ -52,6 +52,12 @@ class VoxelMap {
   const VoxelMapCounters& counters() const { return counters_; }
   // The voxel holding p_world, or nullptr.
   const Voxel* find(const Eigen::Vector3d& p_world_m) const;
+  // Voxels in creation order: created(i), i in [0, size()), is the slot of the i-th voxel made
+  // since the last clear(). Slots never move while the map is not cleared (no deletion, no
+  // rehash), so a slot is a stable id of its voxel: the map streamer sends voxels in this order
+  // and names them by slot.
+  uint32_t created(int i) const { return created_[static_cast<size_t>(i)]; }
+  const Voxel& at_slot(uint32_t slot) const { return voxels_[slot]; }
   // Visits every occupied voxel (table order).
   template <class F>
   void for_each(F&& f) const {
@@ -70,6 +76,7 @@ class VoxelMap {
   double inv_voxel_ = 0;
   std::vector<uint64_t> keys_;
   std::vector<Voxel> voxels_;
+  std::vector<uint32_t> created_;  // capacity max_voxels, fixed at construction
   size_t mask_ = 0;
   int size_ = 0;
   VoxelMapCounters counters_;
