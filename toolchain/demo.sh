@@ -1,7 +1,10 @@
 #!/usr/bin/env bash
 # Installs what is missing, builds, and runs the pipeline as far as it exists:
 #   simulator (hwr-sim) → robot process (hwr-robot: HAL replay → fixed-rate scheduler → pose
-#   estimation → local maps and the map store) → evaluation (trajectory ATE, welding-plate AE)
+#   estimation → local maps and the map store → Draco chunks over LCM) → ground station
+#   (hwr-ground: receives, stores, writes PLY/PCD maps) → evaluation (trajectory ATE, plate AE)
+# Robot and ground station talk UDP multicast inside a private network namespace (unshare -rn)
+# where the system allows one, else on this host only (ttl=0).
 # Outputs go to out/demo/ (override with HWR_DEMO_OUT=DIR). By default the first 60 s of the lab
 # walk are simulated (~2 GB of images, a few minutes on 2 cores); --duration S picks another
 # length, --full the whole ~48 m, 164 s walk (~5 GB).
@@ -18,7 +21,7 @@ esac
 
 toolchain/install-deps.sh --with-bench-peers
 cmake --preset host-release
-cmake --build --preset host-release --target hwr-sim hwr-robot hwr-eval
+cmake --build --preset host-release --target hwr-sim hwr-robot hwr-ground hwr-eval
 bin=build/host-release/apps
 
 echo
@@ -27,11 +30,37 @@ rm -rf "$out/sim-lab"
 "$bin/hwr-sim/hwr-sim" --scenario lab --out "$out/sim-lab" --threads 2 "${duration[@]}"
 
 echo
-echo "== 2/4 robot: HAL, fixed-rate scheduler, pose estimation, local maps into the map store =="
-rm -rf "$out/map-store"
-"$bin/hwr-robot/hwr-robot" --source "sim:$out/sim-lab" --quiet --traj-out "$out/trajectory.txt" \
-  --timing-out "$out/timing.csv" --map-out "$out/map-store" --cloud-out "$out/map-cloud.bin" \
-  | tee "$out/robot-telemetry.txt"
+echo "== 2/4 robot and ground station: pose estimation, local maps, the map store, and the map"
+echo "       streamed as Draco chunks over LCM to hwr-ground =="
+rm -rf "$out/map-store" "$out/ground"
+# Both programs in one function, run inside a private network namespace when possible.
+robot_and_ground() {
+  set -euo pipefail
+  local url='udpm://239.255.76.67:7667?ttl=0&recv_buf_size=8388608'
+  if [[ "${HWR_DEMO_NETNS:-0}" == 1 ]]; then
+    ip link set lo up
+    ip route add 224.0.0.0/4 dev lo
+  fi
+  "$bin/hwr-ground/hwr-ground" --out "$out/ground" --link "$url" --status-interval 5 \
+    > "$out/ground-summary.txt" 2> "$out/ground-log.txt" &
+  local ground=$!
+  trap "kill -TERM $ground 2>/dev/null || true" EXIT
+  "$bin/hwr-robot/hwr-robot" --source "sim:$out/sim-lab" --quiet --traj-out "$out/trajectory.txt" \
+    --timing-out "$out/timing.csv" --map-out "$out/map-store" --cloud-out "$out/map-cloud.bin" \
+    --link "$url" --robot-id demo-robot | tee "$out/robot-telemetry.txt"
+  kill -TERM "$ground"
+  wait "$ground"
+  trap - EXIT
+  cat "$out/ground-summary.txt"
+}
+export -f robot_and_ground
+export bin out
+if unshare -rn true 2>/dev/null; then
+  HWR_DEMO_NETNS=1 unshare -rn bash -c robot_and_ground
+else
+  echo "(no private network namespace here: the link runs on this host only, ttl=0)"
+  robot_and_ground
+fi
 
 echo
 echo "== 3/4 evaluation: the estimated trajectory against the simulator's ground truth =="
@@ -63,8 +92,13 @@ demo outputs:
       cloud.bin) with their keyframes and ORB + NDT junctions (docs/reconstruction.md)
   $out/map-cloud.bin
       every segment's points in the world frame (16-byte CloudPoint records)
+  $out/ground/demo-robot/<run>/maps/
+      the ground station's map as it arrived over the link: segment_*.ply/.pcd per local map and
+      merged.ply/.pcd (world frame; PCL, Open3D, CloudCompare read them); the chunks as received
+      (seg_*/chunk_*.lcm) and their Draco payloads (chunk_*.drc, draco_decoder reads them)
+      (docs/mapio.md); $out/ground-summary.txt and ground-log.txt: its report and status lines
   $out/ae.txt
       welding-plate reconstruction error (AE) of that map (docs/reconstruction.md)
 
-detection and the ground station are the next stages (docs/architecture.md).
+welding-region detection is the next stage (docs/architecture.md).
 MSG

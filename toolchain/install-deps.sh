@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Installs every Debian 12 package hwr-perception needs, skipping those already present.
 # Usage: toolchain/install-deps.sh [--with-bench-peers] [--agx]
-#   --with-bench-peers  also installs packages only the peer benchmarks use.
+#   --with-bench-peers  also installs packages only the peer benchmarks use (and pcl-tools, the
+#                       independent PLY/PCD reader of the ground-station interop test).
 #   --agx               also installs the aarch64 cross compiler and qemu-user, and builds the
 #                       arm64 sysroot for `cmake --preset agx` (toolchain/make-agx-sysroot.sh;
 #                       Debian's amd64 and arm64 -dev packages of OpenCV, yaml-cpp, FLANN and LCM
@@ -18,8 +19,12 @@ packages=(
   libopencv-dev libembree-dev libusb-1.0-0-dev
   # estimation / recon (zlib: the map store's CRC32)
   libflann-dev liblz4-dev zlib1g-dev
-  # mapio
-  libdraco-dev liblcm-dev liblcm-bin
+  # mapio (draco: draco_decoder/draco_encoder, the interop check of chunk payloads)
+  libdraco-dev liblcm-dev liblcm-bin draco
+  # link tests: private network namespaces (unshare, ip), packet loss (nft), shaping (tc)
+  util-linux iproute2 nftables
+  # fuzz targets (libFuzzer ships with Debian's clang)
+  clang
   # tests and benches
   libgtest-dev libgmock-dev libbenchmark-dev
 )
@@ -28,7 +33,7 @@ agx=()
 agx_packages=(g++-aarch64-linux-gnu qemu-user binutils-aarch64-linux-gnu)
 for arg in "$@"; do
   case "$arg" in
-    --with-bench-peers) bench_peers=(libopencv-contrib-dev libceres-dev libpcl-dev) ;;
+    --with-bench-peers) bench_peers=(libopencv-contrib-dev libceres-dev libpcl-dev pcl-tools) ;;
     --agx) agx=("${agx_packages[@]}") ;;
     *) echo "install-deps: unknown option '$arg' (use --with-bench-peers, --agx)" >&2; exit 2 ;;
   esac

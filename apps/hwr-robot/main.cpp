@@ -7,7 +7,9 @@
 // simulated clock: deterministic, faster than real time; --realtime paces it at sensor rate.
 #include <unistd.h>
 
+#include <chrono>
 #include <cinttypes>
+#include <cstddef>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -30,6 +32,7 @@
 #include "hwr/hal/fault_injection.hpp"
 #include "hwr/hal/replay_source.hpp"
 #include "hwr/hal/stream_health.hpp"
+#include "hwr/mapio/map_streamer.hpp"
 #include "hwr/recon/local_mapper.hpp"
 #include "hwr/recon/local_mapper_config.hpp"
 #include "hwr/recon/map_store.hpp"
@@ -65,6 +68,8 @@ struct Args {
   bool realtime = false;
   bool quiet = false;
   std::string traj_out, timing_out, gt_out, faults, config, ba_export, map_out, cloud_out;
+  std::string link, robot_id = "robot1";
+  double link_wait_s = 30.0;
   bool use_imu = true, local_ba = true, full_ba = true;
 };
 
@@ -74,7 +79,7 @@ void usage() {
       "usage: hwr-robot --source KIND:WHAT [--config FILE] [--duration S] [--realtime] [--quiet]\n"
       "                 [--traj-out FILE] [--timing-out FILE] [--gt-out FILE] [--faults SPEC]\n"
       "                 [--no-imu] [--no-local-ba] [--no-full-ba] [--ba-export FILE]\n"
-      "                 [--map-out DIR] [--cloud-out FILE]\n"
+      "                 [--map-out DIR] [--cloud-out FILE] [--link URL [--robot-id ID] [--link-wait S]]\n"
       "  KIND:WHAT  sim:NAME|FILE.yaml (the simulator renders live), sim:DIR (a run written by hwr-sim),\n"
       "             tum:DIR (TUM RGB-D folder), euroc:DIR (EuRoC folder or mav0)\n"
       "  --config FILE      settings (YAML, sections estimation: and map:; config/estimation.yaml and\n"
@@ -88,7 +93,11 @@ void usage() {
       "  --map-out DIR      the map store: closed local maps (segments) with keyframes and junctions,\n"
       "                     written as they close (docs/reconstruction.md)\n"
       "  --cloud-out FILE   every segment's points in the world frame, at the end (binary CloudPoint\n"
-      "                     array, 16 bytes per point; hwr-eval ae --cloud FILE)\n");
+      "                     array, 16 bytes per point; hwr-eval ae --cloud FILE)\n"
+      "  --link URL         stream the map to the ground station (hwr-ground) over LCM, e.g.\n"
+      "                     udpm://239.255.76.67:7667?ttl=0&recv_buf_size=8388608 (docs/mapio.md)\n"
+      "  --robot-id ID      this robot's name on the link ([A-Za-z0-9_-], default robot1)\n"
+      "  --link-wait S      at the end, wait up to S seconds for the ground station's acks (default 30)\n");
 }
 
 // Replay paced at sensor rate: the timeline is the source's time, advancing with CLOCK_MONOTONIC.
@@ -227,6 +236,30 @@ class RobotSegmentSink final : public hwr::recon::SegmentSink {
     }
     if (writer != nullptr) writer->take(std::move(seg));
   }
+};
+
+// The active local map's voxels, streamed as the map fills (recon::MapStreamSink -> mapio).
+// CloudPoint and ChunkPoint share one 16-byte layout. In replay (simulated clock, faster than real
+// time) the mapping task waits for a free batch slot instead of dropping: a replay must not lose
+// map data to its own speed. With --realtime it never waits; a refused batch is counted and stays
+// in the map store.
+static_assert(sizeof(hwr::recon::CloudPoint) == sizeof(hwr::mapio::ChunkPoint) &&
+                  offsetof(hwr::recon::CloudPoint, r) == offsetof(hwr::mapio::ChunkPoint, r),
+              "CloudPoint and ChunkPoint must share their layout");
+class LinkStreamSink final : public hwr::recon::MapStreamSink {
+ public:
+  LinkStreamSink(hwr::mapio::MapStreamer* streamer, double wait_s) : streamer_(streamer), wait_s_(wait_s) {}
+  void stream(uint32_t segment_id, const Eigen::Isometry3d& T_world_segment,
+              const hwr::recon::CloudPoint* points_segment, const uint32_t* voxel_ids, int n,
+              bool segment_complete) override {
+    streamer_->submit(static_cast<int32_t>(segment_id), 0, T_world_segment,
+                      reinterpret_cast<const hwr::mapio::ChunkPoint*>(points_segment), voxel_ids, n,
+                      segment_complete, wait_s_);
+  }
+
+ private:
+  hwr::mapio::MapStreamer* streamer_;
+  double wait_s_;
 };
 
 std::string utc_run_id() {
@@ -376,6 +409,26 @@ int run(const Args& args) {
     segments.writer = store_writer.get();
   }
 
+  std::unique_ptr<hwr::mapio::MapStreamer> streamer;
+  std::unique_ptr<LinkStreamSink> link_sink;
+  if (!args.link.empty()) {
+    // run_id: wall-clock nanoseconds at start, unique per robot run.
+    const int64_t run_id = static_cast<int64_t>(std::chrono::duration_cast<std::chrono::nanoseconds>(
+                                                    std::chrono::system_clock::now().time_since_epoch())
+                                                    .count());
+    auto s =
+        hwr::mapio::MapStreamer::start(args.link, args.robot_id, run_id, hwr::mapio::MapStreamerConfig{});
+    if (!s.ok()) {
+      std::fprintf(stderr, "hwr-robot: --link: %s\n", s.status().message().c_str());
+      return 1;
+    }
+    streamer = std::move(s.value());
+    link_sink = std::make_unique<LinkStreamSink>(streamer.get(), args.realtime ? 0.0 : 60.0);
+    mapper->set_stream_sink(link_sink.get());
+    std::fprintf(stderr, "hwr-robot: streaming the map as %s run %lld over %s\n", args.robot_id.c_str(),
+                 static_cast<long long>(run_id), args.link.c_str());
+  }
+
   const int64_t t0 = info.first_t_ns;
   hwr::core::SimClock sim_clock(t0);
   PacedClock paced_clock(t0);
@@ -511,6 +564,31 @@ int run(const Args& args) {
                   w.written, w.failed, w.stalls, args.map_out.c_str());
       if (w.failed > 0) rc = 1;
     }
+    if (streamer) {
+      // The robot has stopped: the rest of the map goes out; wait for the ground station.
+      const auto wait0 = std::chrono::steady_clock::now();
+      const bool all_acked = streamer->flush(args.link_wait_s);
+      const double waited_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wait0).count();
+      const hwr::mapio::MapStreamerStats ls = streamer->stats();
+      std::printf(
+          "link: %lld chunks, %lld points, %.2f MB (raw %.2f MB, %.1fx smaller), sends %lld, resends %lld, "
+          "acked %lld, refused batches %lld, encode errors %lld; %s %.2f s after the stop\n",
+          static_cast<long long>(ls.chunks), static_cast<long long>(ls.points), ls.payload_bytes * 1e-6,
+          ls.raw_bytes * 1e-6,
+          ls.payload_bytes > 0 ? static_cast<double>(ls.raw_bytes) / ls.payload_bytes : 0.0,
+          static_cast<long long>(ls.sends), static_cast<long long>(ls.resends),
+          static_cast<long long>(ls.acked), static_cast<long long>(ls.batches_refused),
+          static_cast<long long>(ls.encode_errors), all_acked ? "all acknowledged" : "NOT all acknowledged",
+          waited_s);
+      if (!all_acked) {
+        std::fprintf(
+            stderr,
+            "hwr-robot: --link: %d chunks not acknowledged after %.0f s (is hwr-ground running on the "
+            "same URL?); the map store still has everything\n",
+            ls.in_flight, args.link_wait_s);
+        rc = 1;
+      }
+    }
     if (!args.cloud_out.empty()) {
       const hwr::core::Status ws = hwr::recon::write_cloud_file(args.cloud_out, segments.cloud_world.data(),
                                                                 segments.cloud_world.size());
@@ -600,6 +678,12 @@ int main(int argc, char** argv) {
       args.map_out = value("--map-out");
     } else if (a == "--cloud-out") {
       args.cloud_out = value("--cloud-out");
+    } else if (a == "--link") {
+      args.link = value("--link");
+    } else if (a == "--robot-id") {
+      args.robot_id = value("--robot-id");
+    } else if (a == "--link-wait") {
+      args.link_wait_s = std::atof(value("--link-wait"));
     } else if (a == "--ba-export") {
       args.ba_export = value("--ba-export");
     } else if (a == "--no-imu") {

@@ -4,6 +4,8 @@
 #include <unistd.h>
 
 #include <filesystem>
+#include <cstdlib>
+#include <cstring>
 #include <fstream>
 #include <string>
 
@@ -96,6 +98,55 @@ TEST(HwrRobotCli, GivenMapOutputsWhenRunOnTeddyThenTheStoreAndCloudHoldTheMapAnd
   const CliRun again = run_robot(args);
   EXPECT_EQ(again.exit_code, 1) << again.out;
   EXPECT_NE(again.out.find("already holds 2 segments"), std::string::npos) << again.out;
+  std::filesystem::remove_all(dir);
+}
+
+// The robot streams its map to the ground-station program over UDP multicast, both inside a private
+// network namespace: every point of the robot's map ends up in the ground station's merged map.
+TEST(HwrRobotCli, GivenALinkWhenRunOnTeddyThenTheGroundStationHasTheWholeMap) {
+  if (std::system("unshare -rn true >/dev/null 2>&1") != 0) {
+    GTEST_SKIP() << "cannot create a private network namespace here (unshare -rn failed)";
+  }
+  const std::string dir = ::testing::TempDir() + "hwr_robot_link_" + std::to_string(::getpid());
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  // The script goes to a file: the shell that popen starts would otherwise expand its $ variables.
+  const std::string url = "'udpm://239.255.76.67:7667?ttl=0&recv_buf_size=8388608'";
+  const std::string script = dir + "/link.sh";
+  {
+    std::ofstream sh(script);
+    sh << "ip link set lo up && ip route add 224.0.0.0/4 dev lo || exit 3\n"
+       << "timeout 300 " << HWR_BINARY_DIR << "/apps/hwr-ground/hwr-ground --out " << dir << "/ground --link "
+       << url << " --status-interval 0 > " << dir << "/ground.txt 2>&1 &\n"
+       << "g=$!\n"
+       << "timeout 300 " << kRobot << " --source tum:" << kTeddy << " --quiet --link " << url
+       << " --robot-id teddy --link-wait 60\n"
+       << "rc=$?\n"
+       << "kill -TERM $g\n"
+       << "wait $g\n"
+       << "echo ground_rc=$?\n"
+       << "cat " << dir << "/ground.txt\n"
+       << "exit $rc\n";
+  }
+  const CliRun r = hwr::testing::run_cli("unshare -rn bash", script);
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  EXPECT_NE(r.out.find("all acknowledged"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("ground_rc=0"), std::string::npos) << r.out;
+  const size_t at = r.out.find("map: segments=2 points=");
+  ASSERT_NE(at, std::string::npos) << r.out;
+  const long long robot_points = std::atoll(r.out.c_str() + at + std::strlen("map: segments=2 points="));
+  EXPECT_GT(robot_points, 100'000);
+  // merged.ply's vertex count is the robot's map size.
+  std::string merged;
+  for (const auto& e : std::filesystem::recursive_directory_iterator(dir + "/ground"))
+    if (e.path().filename() == "merged.ply") merged = e.path().string();
+  ASSERT_FALSE(merged.empty()) << r.out;
+  std::ifstream ply(merged, std::ios::binary);
+  std::string line;
+  long long vertices = -1;
+  while (std::getline(ply, line) && line != "end_header")
+    if (line.rfind("element vertex ", 0) == 0) vertices = std::atoll(line.c_str() + 15);
+  EXPECT_EQ(vertices, robot_points);
   std::filesystem::remove_all(dir);
 }
 

@@ -1,0 +1,87 @@
+#pragma once
+// The robot's map streamer (issue #5 items 2-3; paper sec. III-C): point batches of the local maps
+// come in from the mapping task, are cut into Draco chunks small enough for one link datagram, and go
+// out through the reliable link (ChunkSender over LcmLink) on the streamer's own thread, which also
+// reads the ground station's acknowledgements. The mapping task never waits: submit() copies the
+// batch into a preallocated slot and returns; with every slot busy the batch is refused and counted
+// (the caller's map store still has it).
+//
+// Chunks: at most max_points_per_chunk points, and an encoded payload of at most max_chunk_bytes
+// (a chunk over it is split in half until it fits). A batch that completes a segment ends with a
+// chunk flagged segment_complete whose chunk_count is the segment's final count; a segment that
+// closes with nothing left to send gets an empty completing chunk (num_points 0, no payload).
+
+#include <Eigen/Geometry>
+#include <atomic>
+#include <cstdint>
+#include <memory>
+#include <string>
+
+#include "hwr/core/status.hpp"
+#include "hwr/mapio/chunk_codec.hpp"
+#include "hwr/mapio/chunk_sender.hpp"
+
+namespace hwr::mapio {
+
+struct MapStreamerConfig {
+  // Each voxel is streamed once (recon::MapStreamSink), so point ids are not sent by default: they
+  // are hash-table slots, ~20 bits of entropy per point that would double the payload.
+  ChunkCodecConfig codec;
+  // In flight at most ~0.75 MB: LCM's udpm receiver queues undispatched messages in a 1000 KiB ring
+  // (lcm_udpm.c LCM_RINGBUF_SIZE) and drops what does not fit, so a larger window only turns a busy
+  // ground station into lost chunks and resends.
+  LinkConfig link = [] {
+    LinkConfig l;
+    l.window_chunks = 16;
+    l.window_bytes = 768u << 10;
+    // A window's worth of chunks takes the ground station ~0.4 s to verify, decode and fsync; a
+    // shorter timeout resends chunks that are merely queued.
+    l.initial_rto_ns = 1'000'000'000;
+    return l;
+  }();
+  int max_points_per_chunk = 16'384;
+  size_t max_chunk_bytes = 60'000;  // one LCM datagram (no LCM fragmentation: a lost fragment loses all)
+  int batch_slots = 16;             // batches waiting for the streamer thread
+  int max_batch_points = 65'536;    // points per submit() at most
+};
+
+struct MapStreamerStats {
+  int64_t batches = 0, batches_refused = 0;  // submit() calls taken / refused (slots full, too large)
+  int64_t chunks = 0, points = 0;            // encoded and offered
+  int64_t payload_bytes = 0;                 // encoded payload bytes (first sends)
+  int64_t raw_bytes = 0;                     // 15 bytes per point (float xyz + rgb): the "direct" size
+  int64_t encode_errors = 0;
+  int64_t sends = 0, resends = 0, acked = 0;  // from the ChunkSender
+  int in_flight = 0;
+  int64_t link_errors = 0;
+  int64_t last_ack_ns = 0;  // steady clock
+};
+
+class MapStreamer {
+ public:
+  // Opens the LCM URL (kIoError when it cannot) and starts the streamer thread. kInvalidArgument for
+  // a robot_id the ground station would refuse ([A-Za-z0-9_-]{1,64}) or a bad config.
+  static core::Expected<std::unique_ptr<MapStreamer>> start(const std::string& url,
+                                                            const std::string& robot_id, int64_t run_id,
+                                                            const MapStreamerConfig& config);
+  ~MapStreamer();  // stops the thread without waiting for acknowledgements
+
+  // Mapping task: points in the segment frame, ids (may be null) per point. With every batch slot
+  // busy it waits up to wait_s for one (0: never blocks), then refuses (false, counted).
+  bool submit(int32_t segment_id, int32_t segment_version, const Eigen::Isometry3d& T_world_segment,
+              const ChunkPoint* points_segment, const uint32_t* ids, int n, bool segment_complete,
+              double wait_s = 0.0);
+  // Waits until everything submitted has been acknowledged (true) or timeout_s passed (false).
+  bool flush(double timeout_s);
+  MapStreamerStats stats() const;
+
+  MapStreamer(const MapStreamer&) = delete;
+  MapStreamer& operator=(const MapStreamer&) = delete;
+
+ private:
+  struct Impl;
+  explicit MapStreamer(std::unique_ptr<Impl> impl);
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace hwr::mapio

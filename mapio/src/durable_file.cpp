@@ -1,0 +1,74 @@
+#include "durable_file.hpp"
+
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
+
+#include "hwr/core/file_io.hpp"
+
+namespace hwr::mapio::detail {
+
+core::Status fsync_directory(const std::string& dir) {
+  const int fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  if (fd < 0) return core::IoError(dir + ": cannot open folder for fsync: " + std::strerror(errno));
+  int err = 0;
+  if (::fsync(fd) != 0) err = errno;
+  ::close(fd);
+  if (err != 0) return core::IoError(dir + ": folder fsync failed: " + std::strerror(err));
+  return core::Status::Ok();
+}
+
+std::string parent_directory(const std::string& path) {
+  const size_t slash = path.find_last_of('/');
+  if (slash == std::string::npos) return ".";
+  if (slash == 0) return "/";
+  return path.substr(0, slash);
+}
+
+AtomicFileWriter::~AtomicFileWriter() { abandon(); }
+
+void AtomicFileWriter::abandon() {
+  if (fd_ >= 0) {
+    ::close(fd_);
+    fd_ = -1;
+    std::remove(tmp_.c_str());
+  }
+}
+
+core::Status AtomicFileWriter::open(const std::string& path) {
+  abandon();
+  path_ = path;
+  tmp_ = path + ".tmp";
+  fd_ = ::open(tmp_.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd_ < 0) return core::IoError(path + ": cannot open " + tmp_ + " for writing: " + std::strerror(errno));
+  return core::Status::Ok();
+}
+
+core::Status AtomicFileWriter::write(const void* data, size_t size) {
+  if (fd_ < 0) return core::Internal(path_ + ": write() without a successful open()");
+  const int err = core::write_all_fd(fd_, data, size);
+  if (err != 0) {
+    abandon();
+    return core::IoError(path_ + ": write failed: " + std::strerror(err));
+  }
+  return core::Status::Ok();
+}
+
+core::Status AtomicFileWriter::commit() {
+  if (fd_ < 0) return core::Internal(path_ + ": commit() without a successful open()");
+  int err = 0;
+  if (::fsync(fd_) != 0) err = errno;
+  if (::close(fd_) != 0 && err == 0) err = errno;
+  fd_ = -1;
+  if (err == 0 && std::rename(tmp_.c_str(), path_.c_str()) != 0) err = errno;
+  if (err != 0) {
+    std::remove(tmp_.c_str());
+    return core::IoError(path_ + ": write failed: " + std::strerror(err));
+  }
+  return fsync_directory(parent_directory(path_));
+}
+
+}  // namespace hwr::mapio::detail

@@ -1,0 +1,42 @@
+#pragma once
+// Crash-safe file primitives shared by the ground store and the cloud writers (private to mapio).
+// core/file_io.hpp writes whole in-memory files atomically; these add what it lacks: the directory
+// fsync that makes a rename durable, and a streaming atomic writer for files too large to build in
+// memory first (a merged map of millions of points). Same protocol as core: PATH.tmp, fsync,
+// rename over PATH, then fsync of the directory.
+
+#include <cstddef>
+#include <string>
+
+#include "hwr/core/status.hpp"
+
+namespace hwr::mapio::detail {
+
+// fsync(2) of a directory: makes the entries created, renamed or removed in it durable.
+core::Status fsync_directory(const std::string& dir);
+
+// The folder part of a path ("." when it has none).
+std::string parent_directory(const std::string& path);
+
+// Streams bytes into PATH.tmp; commit() makes them PATH. Destroyed without a successful commit()
+// (an error, an early return), it removes the temp file, so PATH is never touched.
+class AtomicFileWriter {
+ public:
+  AtomicFileWriter() = default;
+  AtomicFileWriter(const AtomicFileWriter&) = delete;
+  AtomicFileWriter& operator=(const AtomicFileWriter&) = delete;
+  ~AtomicFileWriter();
+
+  core::Status open(const std::string& path);
+  core::Status write(const void* data, size_t size);
+  // fsync, close, rename PATH.tmp -> PATH, fsync the folder.
+  core::Status commit();
+
+ private:
+  void abandon();
+
+  int fd_ = -1;
+  std::string path_, tmp_;
+};
+
+}  // namespace hwr::mapio::detail

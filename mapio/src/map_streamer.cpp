@@ -1,0 +1,274 @@
+#include "hwr/mapio/map_streamer.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <condition_variable>
+#include <deque>
+#include <map>
+#include <mutex>
+#include <thread>
+#include <utility>
+#include <vector>
+
+#include "hwr/core/log.hpp"
+#include "hwr/core/object_pool.hpp"
+#include "hwr/core/spsc_ring.hpp"
+#include "hwr/mapio/chunk_wire.hpp"
+#include "hwr/mapio/ground_store.hpp"
+#include "hwr/mapio/lcm_link.hpp"
+
+namespace hwr::mapio {
+namespace {
+
+int64_t steady_ns() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(
+             std::chrono::steady_clock::now().time_since_epoch())
+      .count();
+}
+
+struct Batch {
+  int32_t segment_id = 0, segment_version = 0;
+  double T_world_segment[12] = {};
+  bool complete = false;
+  bool has_ids = false;
+  int n = 0;
+  std::vector<ChunkPoint> points;
+  std::vector<uint32_t> ids;
+};
+
+}  // namespace
+
+struct MapStreamer::Impl {
+  Impl(LcmLink l, const std::string& robot_id, int64_t run_id, const MapStreamerConfig& c)
+      : config(c),
+        link(std::move(l)),
+        sender(robot_id, run_id, c.link),
+        pool(static_cast<size_t>(c.batch_slots), prototype(c)),
+        queue(static_cast<size_t>(c.batch_slots)) {}
+
+  static Batch prototype(const MapStreamerConfig& c) {
+    Batch b;
+    b.points.resize(static_cast<size_t>(c.max_batch_points));
+    b.ids.resize(static_cast<size_t>(c.max_batch_points));
+    return b;
+  }
+
+  MapStreamerConfig config;
+  LcmLink link;
+  ChunkSender sender;
+  core::ObjectPool<Batch> pool;
+  core::SpscRing<Batch*> queue;
+  std::thread thread;
+  std::atomic<bool> stop{false};
+  std::atomic<int64_t> submitted{0};  // batches handed to the queue
+  std::atomic<int64_t> consumed{0};   // batches fully encoded and offered
+
+  // Streamer-thread state.
+  std::deque<hwr_lcm::map_chunk_t> pending;  // encoded, not yet in the sender's window
+  std::map<std::pair<int32_t, int32_t>, int32_t> next_chunk_index;
+  std::vector<uint8_t> payload;
+  std::vector<uint8_t> wire;
+  hwr_lcm::chunk_ack_t ack;
+
+  mutable std::mutex mu;
+  std::condition_variable cv;
+  MapStreamerStats stats;
+
+  void publish(const hwr_lcm::map_chunk_t& c) {
+    const core::Status st = encode_chunk_message(c, &wire);
+    if (st.ok() && link.publish_bytes(kChannelMapChunk, wire.data(), wire.size()).ok()) return;
+    std::lock_guard<std::mutex> lock(mu);
+    ++stats.link_errors;
+  }
+
+  // A chunk of the segment's next index from `payload` (n points; n = 0: an empty completing chunk).
+  void make_chunk(const Batch& b, int n, bool last_of_complete) {
+    hwr_lcm::map_chunk_t c;
+    c.segment_id = b.segment_id;
+    c.segment_version = b.segment_version;
+    int32_t& next = next_chunk_index[{b.segment_id, b.segment_version}];
+    c.chunk_index = next++;
+    c.chunk_count = next;
+    c.segment_complete = last_of_complete ? 1 : 0;
+    std::copy(b.T_world_segment, b.T_world_segment + 12, c.T_world_segment);
+    c.num_points = n;
+    c.has_normals = 0;
+    if (n > 0) c.payload = payload;
+    c.max_position_error_m = n > 0 ? static_cast<float>(last_error_m) : 0.0f;
+    c.payload_size = static_cast<int32_t>(c.payload.size());
+    pending.push_back(std::move(c));
+  }
+
+  double last_error_m = 0;
+
+  // Encodes [pts, pts + n) into one chunk, halving until it fits max_chunk_bytes.
+  void encode_range(const Batch& b, const ChunkPoint* pts, const uint32_t* ids, int n, bool ends_complete) {
+    ChunkCodecConfig codec = config.codec;
+    codec.max_payload_bytes = config.max_chunk_bytes;
+    if (ids == nullptr) codec.with_point_ids = false;
+    auto r = encode_chunk(pts, n, codec.with_point_ids ? ids : nullptr, nullptr, codec, &payload);
+    if (!r.ok() && r.status().code() == core::ErrorCode::kOutOfRange && n > 1) {
+      const int half = n / 2;
+      encode_range(b, pts, ids, half, false);
+      encode_range(b, pts + half, ids != nullptr ? ids + half : nullptr, n - half, ends_complete);
+      return;
+    }
+    if (!r.ok()) {
+      HWR_LOG_WARN("mapio", "map streamer: %d points of segment %d not encoded: %s", n, b.segment_id,
+                   r.status().message().c_str());
+      std::lock_guard<std::mutex> lock(mu);
+      ++stats.encode_errors;
+      if (!ends_complete) return;
+      n = 0;  // still tell the ground station the segment is complete
+    } else {
+      last_error_m = r->max_position_error_m;
+      std::lock_guard<std::mutex> lock(mu);
+      ++stats.chunks;
+      stats.points += n;
+      stats.payload_bytes += static_cast<int64_t>(payload.size());
+      stats.raw_bytes += 15 * static_cast<int64_t>(n);
+    }
+    make_chunk(b, n, ends_complete);
+  }
+
+  void encode_batch(const Batch& b) {
+    if (b.n == 0) {
+      if (b.complete) make_chunk(b, 0, true);
+      return;
+    }
+    for (int first = 0; first < b.n; first += config.max_points_per_chunk) {
+      const int n = std::min(config.max_points_per_chunk, b.n - first);
+      const bool last = first + n == b.n;
+      encode_range(b, b.points.data() + first, b.has_ids ? b.ids.data() + first : nullptr, n,
+                   last && b.complete);
+    }
+  }
+
+  void run() {
+    link.subscribe(kChannelMapAck, [this](const uint8_t* d, size_t n) {
+      if (!decode_ack_message(d, n, &ack).ok() || !verify_ack(ack, ChunkWireLimits{}).ok()) return;
+      sender.on_ack(ack, steady_ns());
+      std::lock_guard<std::mutex> lock(mu);
+      stats.last_ack_ns = steady_ns();
+    });
+    for (;;) {
+      // Take the next batch only when the previous one's chunks are all in the window.
+      Batch* b = nullptr;
+      if (pending.empty() && queue.try_pop(b)) {
+        encode_batch(*b);
+        pool.release(b);
+        consumed.fetch_add(1);
+      }
+      const int64_t now = steady_ns();
+      while (!pending.empty() && sender.can_accept(pending.front().payload.size())) {
+        if (!sender.offer(std::move(pending.front()), now)) break;
+        pending.pop_front();
+      }
+      sender.service(now, [this](const hwr_lcm::map_chunk_t& c) { publish(c); });
+      {
+        std::lock_guard<std::mutex> lock(mu);
+        const ChunkSender::Stats& s = sender.stats();
+        stats.sends = s.sends;
+        stats.resends = s.resends;
+        stats.acked = s.acked;
+        stats.in_flight = s.in_flight;
+        drained = consumed.load() == submitted.load() && pending.empty() && sender.idle();
+      }
+      cv.notify_all();
+      if (stop.load()) return;
+      // Wait for acks; return early when there is encoding to do.
+      const bool work =
+          !pending.empty() ? sender.can_accept(pending.front().payload.size()) : queue.size() > 0;
+      auto r = link.handle(work ? 0 : 5);
+      if (!r.ok()) {
+        std::lock_guard<std::mutex> lock(mu);
+        ++stats.link_errors;
+      } else if (r.value() > 0) {
+        (void)link.drain();
+      }
+    }
+  }
+
+  bool drained = true;  // under mu: at the end of the thread's last pass, nothing was left to send
+};
+
+MapStreamer::MapStreamer(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+
+MapStreamer::~MapStreamer() {
+  impl_->stop.store(true);
+  if (impl_->thread.joinable()) impl_->thread.join();
+}
+
+core::Expected<std::unique_ptr<MapStreamer>> MapStreamer::start(const std::string& url,
+                                                                const std::string& robot_id, int64_t run_id,
+                                                                const MapStreamerConfig& config) {
+  if (config.batch_slots < 1 || config.max_batch_points < 1 || config.max_points_per_chunk < 1 ||
+      config.max_chunk_bytes < 1024) {
+    return core::InvalidArgument(
+        "map streamer: needs batch_slots >= 1, max_batch_points >= 1, max_points_per_chunk >= 1, "
+        "max_chunk_bytes >= 1024");
+  }
+  HWR_RETURN_IF_ERROR(GroundStore::validate_robot_id(robot_id));
+  auto link = LcmLink::open(url);
+  if (!link.ok()) return link.status();
+  std::unique_ptr<MapStreamer> s(
+      new MapStreamer(std::make_unique<Impl>(std::move(link.value()), robot_id, run_id, config)));
+  Impl* impl = s->impl_.get();
+  impl->thread = std::thread([impl] { impl->run(); });
+  return s;
+}
+
+bool MapStreamer::submit(int32_t segment_id, int32_t segment_version,
+                         const Eigen::Isometry3d& T_world_segment, const ChunkPoint* points_segment,
+                         const uint32_t* ids, int n, bool segment_complete, double wait_s) {
+  Impl& m = *impl_;
+  Batch* b = nullptr;
+  if (n >= 0 && n <= m.config.max_batch_points) {
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(wait_s);
+    while ((b = m.pool.acquire()) == nullptr && std::chrono::steady_clock::now() < deadline)
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  if (b == nullptr) {
+    std::lock_guard<std::mutex> lock(m.mu);
+    ++m.stats.batches_refused;
+    return false;
+  }
+  b->segment_id = segment_id;
+  b->segment_version = segment_version;
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 4; ++c) b->T_world_segment[4 * r + c] = T_world_segment.matrix()(r, c);
+  b->complete = segment_complete;
+  b->has_ids = ids != nullptr;
+  b->n = n;
+  std::copy(points_segment, points_segment + n, b->points.begin());
+  if (ids != nullptr) std::copy(ids, ids + n, b->ids.begin());
+  m.submitted.fetch_add(1);
+  if (!m.queue.try_push(b)) {  // cannot happen: as many queue places as batches
+    m.submitted.fetch_sub(1);
+    m.pool.release(b);
+    std::lock_guard<std::mutex> lock(m.mu);
+    ++m.stats.batches_refused;
+    return false;
+  }
+  std::lock_guard<std::mutex> lock(m.mu);
+  ++m.stats.batches;
+  return true;
+}
+
+bool MapStreamer::flush(double timeout_s) {
+  Impl& m = *impl_;
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
+  std::unique_lock<std::mutex> lock(m.mu);
+  for (;;) {
+    // `drained` was computed at the end of a pass; a batch submitted since makes submitted > consumed.
+    if (m.drained && m.consumed.load() == m.submitted.load()) return true;
+    if (m.cv.wait_until(lock, deadline) == std::cv_status::timeout) return false;
+  }
+}
+
+MapStreamerStats MapStreamer::stats() const {
+  std::lock_guard<std::mutex> lock(impl_->mu);
+  return impl_->stats;
+}
+
+}  // namespace hwr::mapio
