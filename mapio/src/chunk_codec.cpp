@@ -163,6 +163,10 @@ core::Expected<EncodedChunkInfo> encode_chunk(const ChunkPoint* points, int n, c
                                      ? "encode_chunk: with_point_ids is set but no ids were passed"
                                      : "encode_chunk: ids were passed but with_point_ids is false");
   }
+  if (config.color_bits < 1 || config.color_bits > 8) {
+    return core::InvalidArgument("encode_chunk: color_bits must be 1..8, got " +
+                                 std::to_string(config.color_bits));
+  }
   if (normals_xyz != nullptr &&
       (config.normal_quantization_bits < 1 || config.normal_quantization_bits > kMaxQuantizationBits)) {
     return core::InvalidArgument("encode_chunk: normal_quantization_bits must be 1..30, got " +
@@ -224,10 +228,30 @@ core::Expected<EncodedChunkInfo> encode_chunk(const ChunkPoint* points, int n, c
   builder.Start(static_cast<draco::PointIndex::ValueType>(n));
   const int att_position = builder.AddAttribute(draco::GeometryAttribute::POSITION, 3, draco::DT_FLOAT32);
   const int att_color = builder.AddAttribute(draco::GeometryAttribute::COLOR, 3, draco::DT_UINT8);
-  const int att_flags = builder.AddAttribute(draco::GeometryAttribute::GENERIC, 1, draco::DT_UINT8);
   builder.SetAttributeValuesForAllPoints(att_position, &points[0].x_m, sizeof(ChunkPoint));
-  builder.SetAttributeValuesForAllPoints(att_color, &points[0].r, sizeof(ChunkPoint));
-  builder.SetAttributeValuesForAllPoints(att_flags, &points[0].flags, sizeof(ChunkPoint));
+  if (config.color_bits == 8) {
+    builder.SetAttributeValuesForAllPoints(att_color, &points[0].r, sizeof(ChunkPoint));
+  } else {
+    // Each channel rounded to the nearest of 2^color_bits levels spread over 0..255: fewer distinct
+    // values for the entropy coder, still ordinary 8-bit colours for any Draco reader.
+    const int levels = (1 << config.color_bits) - 1;
+    uint8_t rgb[3];
+    for (int i = 0; i < n; ++i) {
+      const uint8_t in[3] = {points[i].r, points[i].g, points[i].b};
+      for (int c = 0; c < 3; ++c) {
+        const int level = (in[c] * levels + 127) / 255;
+        rgb[c] = static_cast<uint8_t>((level * 255 + levels / 2) / levels);
+      }
+      builder.SetAttributeValueForPoint(att_color, draco::PointIndex(static_cast<uint32_t>(i)), rgb);
+    }
+  }
+  // Flags travel only when one is set (the decoder reads a missing flags attribute as zeros).
+  const bool any_flags = std::any_of(points, points + n, [](const ChunkPoint& p) { return p.flags != 0; });
+  int att_flags = -1;
+  if (any_flags) {
+    att_flags = builder.AddAttribute(draco::GeometryAttribute::GENERIC, 1, draco::DT_UINT8);
+    builder.SetAttributeValuesForAllPoints(att_flags, &points[0].flags, sizeof(ChunkPoint));
+  }
   int att_id = -1;
   std::vector<uint16_t> id_halves;
   if (ids != nullptr) {
@@ -251,7 +275,7 @@ core::Expected<EncodedChunkInfo> encode_chunk(const ChunkPoint* points, int n, c
   if (!cloud) return core::Internal("encode_chunk: Draco's PointCloudBuilder returned no cloud");
   cloud->attribute(att_position)->set_unique_id(kUidPosition);
   cloud->attribute(att_color)->set_unique_id(kUidColor);
-  cloud->attribute(att_flags)->set_unique_id(kUidFlags);
+  if (att_flags >= 0) cloud->attribute(att_flags)->set_unique_id(kUidFlags);
   if (att_id >= 0) cloud->attribute(att_id)->set_unique_id(kUidPointId);
   if (att_normal >= 0) cloud->attribute(att_normal)->set_unique_id(kUidNormal);
 

@@ -344,6 +344,39 @@ TEST(ChunkCodec, GivenARealisticRoomCloudThenItCompressesToUnderAQuarterOfRawAt1
   }
 }
 
+// color_bits < 8 rounds each channel to 2^bits levels: bounded colour error, fewer bytes; positions
+// keep their bound.
+TEST(ChunkCodec, GivenFewerColourBitsThenColoursStayWithinHalfALevelAndThePayloadShrinks) {
+  const Cloud c = room_cloud();
+  ChunkCodecConfig cfg;
+  const std::vector<uint8_t> full = encode_or_die(c, cfg, nullptr);
+  for (int bits : {4, 5, 6}) {
+    cfg.color_bits = bits;
+    cfg.preserve_order = true;  // point i decodes as point i: compare colours one to one
+    const std::vector<uint8_t> lossy = encode_or_die(c, cfg, nullptr);
+    DecodedChunk out;
+    ASSERT_TRUE(decode_chunk(lossy.data(), lossy.size(), 100000, ChunkDecodeLimits{}, &out).ok());
+    const double bound = 255.0 / (2.0 * ((1 << bits) - 1)) + 0.5;
+    double worst = 0;
+    for (size_t i = 0; i < c.points.size(); ++i) {
+      worst = std::max({worst, std::abs(static_cast<double>(out.points[i].r) - c.points[i].r),
+                        std::abs(static_cast<double>(out.points[i].g) - c.points[i].g),
+                        std::abs(static_cast<double>(out.points[i].b) - c.points[i].b)});
+      ASSERT_LE(std::abs(double{out.points[i].x_m} - c.points[i].x_m), cfg.max_position_error_m);
+    }
+    EXPECT_LE(worst, bound) << bits << " bits";
+    EXPECT_GT(worst, 0.0) << bits << " bits: the colours were not reduced";
+    cfg.preserve_order = false;
+    EXPECT_LT(encode_or_die(c, cfg, nullptr).size(), full.size()) << bits << " bits";
+  }
+  cfg.color_bits = 0;
+  std::vector<uint8_t> bytes;
+  EXPECT_EQ(encode_chunk(c.points.data(), static_cast<int>(c.points.size()), nullptr, nullptr, cfg, &bytes)
+                .status()
+                .code(),
+            core::ErrorCode::kInvalidArgument);
+}
+
 // ---- rejection -----------------------------------------------------------------------------------
 
 // A decode that succeeds must hand back something that passes the documented checks.

@@ -1,9 +1,12 @@
 // LcmLink (mapio/lcm_link.hpp): raw publish/subscribe over memq:// in-process and over UDP
 // multicast inside a private network namespace, including a 300 KB message (LCM fragments it;
-// recv_buf_size in the URL keeps the fragments from being dropped), and a clear error for a bad URL.
+// recv_buf_size in the URL keeps the fragments from being dropped), file:// logs written and
+// replayed, and a clear error for a bad URL.
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 
+#include <cstdio>
 #include <numeric>
 #include <vector>
 
@@ -57,6 +60,46 @@ TEST(LcmLink, GivenBadUrlThenClearError) {
   auto link = LcmLink::open("nosuchprovider://x");
   ASSERT_FALSE(link.ok());
   EXPECT_NE(link.status().message().find("cannot open"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace hwr::mapio
+
+namespace hwr::mapio {
+namespace {
+
+// file:// writes an LCM log that a second LcmLink replays (how a recorded link is inspected later).
+TEST(LcmLink, GivenAFileLogThenItReplaysTheMessagesInOrder) {
+  const std::string path = ::testing::TempDir() + "hwr_lcm_link_" + std::to_string(::getpid()) + ".lcmlog";
+  {
+    auto writer = LcmLink::open("file://" + path + "?mode=w");
+    ASSERT_TRUE(writer.ok()) << writer.status().message();
+    for (int i = 0; i < 5; ++i) {
+      hwr_lcm::pose_t pose;
+      pose.t_ns = 1000 + i;
+      pose.robot_id = "r";
+      pose.run_id = 1;
+      for (double& v : pose.T_world_body) v = 0;
+      for (double& v : pose.velocity_world_mps) v = 0;
+      pose.tracking = 1;
+      pose.localized = 0;
+      ASSERT_TRUE(writer->publish(kChannelPose, pose).ok());
+    }
+  }
+  auto reader = LcmLink::open("file://" + path + "?mode=r&speed=0");
+  ASSERT_TRUE(reader.ok()) << reader.status().message();
+  std::vector<int64_t> t;
+  reader->subscribe(kChannelPose, [&](const uint8_t* d, size_t n) {
+    hwr_lcm::pose_t p;
+    ASSERT_EQ(p.decode(d, 0, static_cast<int>(n)), static_cast<int>(n));
+    t.push_back(p.t_ns);
+  });
+  for (int i = 0; i < 50 && t.size() < 5; ++i) {
+    auto r = reader->handle(100);
+    if (!r.ok()) break;  // end of the log
+  }
+  EXPECT_EQ(t, (std::vector<int64_t>{1000, 1001, 1002, 1003, 1004}));
+  std::remove(path.c_str());
 }
 
 }  // namespace

@@ -1,15 +1,16 @@
 #pragma once
 // Draco point-cloud chunk codec (issue #5 item 2; paper section III-C: map chunks are Draco-compressed
 // before they go over the link). Positions are quantized so that every decoded coordinate lies within
-// ChunkCodecConfig::max_position_error_m of the original on each axis; colours, flags and ids are
-// lossless. Decoding validates the bitstream's header against ChunkDecodeLimits before Draco allocates
-// anything (draco_header.hpp), then checks what Draco produced.
+// ChunkCodecConfig::max_position_error_m of the original on each axis; flags and ids are lossless,
+// colours too unless ChunkCodecConfig::color_bits < 8. Decoding validates the bitstream's header and
+// attribute prefix against ChunkDecodeLimits and the layout below before Draco allocates anything
+// (draco_header.hpp), then checks what Draco produced.
 //
 // Bitstream contents (one Draco point cloud, attribute unique ids fixed so a decoder can tell the
 // generic attributes apart):
 //   unique id 0  POSITION  float32 x3, quantized over the bounding box's largest extent
 //   unique id 1  COLOR     uint8 x3   (r, g, b)
-//   unique id 2  GENERIC   uint8 x1   (ChunkPoint::flags)
+//   unique id 2  GENERIC   uint8 x1   (ChunkPoint::flags; only when a flag is set, else decoded as 0)
 //   unique id 3  GENERIC   uint16 x2  (point id: low, high half; only with ChunkCodecConfig::with_point_ids)
 //   unique id 4  NORMAL    float32 x3 (only when normals are passed; quantized, lossy)
 
@@ -44,6 +45,10 @@ struct ChunkCodecConfig {
   // Encode the per-point uint32 ids passed to encode_chunk (the ground station uses them to replace a
   // re-sent voxel). When false, the ids argument must be null.
   bool with_point_ids = false;
+  // Colour precision per channel: 8 is lossless; fewer bits round each channel to the nearest of
+  // 2^color_bits levels over 0..255 (error <= 255 / (2 (2^color_bits - 1)) + 0.5), which the
+  // entropy coder turns into fewer bytes. Decoded colours are ordinary 8-bit values.
+  int color_bits = 8;
   // Quantization of normals (octahedral, lossy) when normals are passed; Draco's default is 8.
   int normal_quantization_bits = 10;
   // An encoded chunk larger than this is refused with kOutOfRange so the caller splits it: chunks must
@@ -77,12 +82,14 @@ struct DecodedChunk {
   std::vector<float> normals_xyz;  // 3 per point; empty when the chunk carries none
 };
 
-// Validates the header (draco_header.hpp) BEFORE calling Draco's decoder: rejects a payload over
-// limits.max_payload_bytes or a point count over limits.max_points (kOutOfRange), a point count that
-// disagrees with expected_points (>= 0; -1 = do not check) or anything malformed (kCorruptData). After
-// decoding: exactly one position (float x3) and one colour (uint8 x3) attribute, the optional flags/ids/
-// normals attributes of the right types, nothing else, and finite positions and normals. `out` is
-// refilled (capacity reused); on error its contents are unspecified.
+// Validates BEFORE calling Draco's decoder: a payload over limits.max_payload_bytes or a header point
+// count over limits.max_points (kOutOfRange); a count that disagrees with expected_points (>= 0; -1 =
+// do not check), a malformed header or attribute prefix, a kd-tree point count that differs from the
+// header's, or attribute descriptors other than the ones encode_chunk writes (kCorruptData; see
+// draco_header.hpp). After decoding: the same attributes, and finite positions and normals. Draco has
+// no checksum, so a corrupted value byte can still decode to a valid but different cloud: the link's
+// CRC32 is what detects those. `out` is refilled (capacity reused); on error its contents are
+// unspecified.
 core::Status decode_chunk(const uint8_t* data, size_t size, int expected_points,
                           const ChunkDecodeLimits& limits, DecodedChunk* out);
 
