@@ -5,7 +5,7 @@
 // exit, the merged map (maps/merged.ply, merged.pcd). Restarting on the same DIR resumes: what is
 // stored is reported to the robot, which sends only the rest. A live status line goes to stderr.
 // Stops on SIGINT/SIGTERM, or with --exit-after-idle S once S seconds pass without a new chunk
-// (after at least one). Exit: 0 ok, 1 runtime error, 2 usage.
+// (counted from the start when none arrives). Exit: 0 ok, 1 runtime error, 2 usage.
 
 #include <csignal>
 #include <cstdio>
@@ -22,6 +22,8 @@
 namespace {
 
 volatile std::sig_atomic_t g_stop = 0;
+// Added to now_ns() to make service() send every pending ack regardless of the ack interval.
+constexpr int64_t g_force_ack_ns = 1'000'000'000'000;
 void on_signal(int) { g_stop = 1; }
 
 int usage(const char* msg) {
@@ -31,7 +33,7 @@ int usage(const char* msg) {
       "usage: hwr-ground --out DIR [--link URL] [--status-interval S] [--exit-after-idle S] [--no-pcd]\n"
       "  --link URL            LCM URL (default %s)\n"
       "  --status-interval S   seconds between status lines (default 1; 0: none)\n"
-      "  --exit-after-idle S   exit S seconds after the last new chunk\n",
+      "  --exit-after-idle S   exit S seconds after the last new chunk (or after start, if none)\n",
       hwr::mapio::kDefaultLinkUrl);
   return 2;
 }
@@ -90,7 +92,8 @@ int main(int argc, char** argv) {
   std::fprintf(stderr, "hwr-ground: listening on %s, storing under %s (%lld chunks already stored)\n",
                url.c_str(), out.c_str(), static_cast<long long>(g.store().chunks_stored()));
 
-  int64_t last_status = now_ns(), last_maps = now_ns();
+  const int64_t started_ns = now_ns();
+  int64_t last_status = started_ns, last_maps = started_ns;
   int rc = 0;
   while (!g_stop) {
     auto r = link->handle(10);
@@ -106,6 +109,10 @@ int main(int argc, char** argv) {
       if (!st.ok()) HWR_LOG_WARN("ground", "ack not sent: %s", st.message().c_str());
     });
     if (t - last_maps > 1'000'000'000) {
+      // Acknowledge what is stored before the (slow) map writing, so the robot is not kept waiting.
+      g.service(t + g_force_ack_ns, [&](const hwr_lcm::chunk_ack_t& ack) {
+        (void)link->publish(hwr::mapio::kChannelMapAck, ack);
+      });
       const hwr::core::Status st = g.write_maps(false);
       if (!st.ok()) HWR_LOG_ERROR("ground", "writing segment maps: %s", st.message().c_str());
       last_maps = t;
@@ -114,9 +121,9 @@ int main(int argc, char** argv) {
       std::fprintf(stderr, "hwr-ground: %s\n", g.status_line(t).c_str());
       last_status = t;
     }
-    if (idle_exit_s >= 0 && g.stats().last_chunk_ns > 0 &&
-        (t - g.stats().last_chunk_ns) * 1e-9 >= idle_exit_s)
-      break;
+    // Idle since the last new chunk, or since start when none came (a restart after everything was stored).
+    const int64_t idle_since = g.stats().last_chunk_ns > 0 ? g.stats().last_chunk_ns : started_ns;
+    if (idle_exit_s >= 0 && (t - idle_since) * 1e-9 >= idle_exit_s) break;
   }
   // Last acks, then the maps.
   g.service(now_ns() + 1'000'000'000'000,

@@ -240,9 +240,10 @@ class RobotSegmentSink final : public hwr::recon::SegmentSink {
 
 // The active local map's voxels, streamed as the map fills (recon::MapStreamSink -> mapio).
 // CloudPoint and ChunkPoint share one 16-byte layout. In replay (simulated clock, faster than real
-// time) the mapping task waits for a free batch slot instead of dropping: a replay must not lose
-// map data to its own speed. With --realtime it never waits; a refused batch is counted and stays
-// in the map store.
+// time) the mapping task waits for a free batch slot rather than drop map data to its own speed; but
+// once a wait times out (no ground station acknowledging) it stops waiting until acks come again, so
+// a missing ground station cannot stall the pipeline. With --realtime it never waits. A refused
+// batch is lost to the link (the map store, --map-out, still has it) and fails the run's exit code.
 static_assert(sizeof(hwr::recon::CloudPoint) == sizeof(hwr::mapio::ChunkPoint) &&
                   offsetof(hwr::recon::CloudPoint, r) == offsetof(hwr::mapio::ChunkPoint, r),
               "CloudPoint and ChunkPoint must share their layout");
@@ -252,14 +253,30 @@ class LinkStreamSink final : public hwr::recon::MapStreamSink {
   void stream(uint32_t segment_id, const Eigen::Isometry3d& T_world_segment,
               const hwr::recon::CloudPoint* points_segment, const uint32_t* voxel_ids, int n,
               bool segment_complete) override {
-    streamer_->submit(static_cast<int32_t>(segment_id), 0, T_world_segment,
-                      reinterpret_cast<const hwr::mapio::ChunkPoint*>(points_segment), voxel_ids, n,
-                      segment_complete, wait_s_);
+    const int64_t last_ack = streamer_->stats().last_ack_ns;
+    if (stalled_ && last_ack != stalled_at_ack_) stalled_ = false;  // the ground station answers again
+    const bool ok = streamer_->submit(static_cast<int32_t>(segment_id), 0, T_world_segment,
+                                      reinterpret_cast<const hwr::mapio::ChunkPoint*>(points_segment),
+                                      voxel_ids, n, segment_complete, stalled_ ? 0.0 : wait_s_);
+    if (!ok && !stalled_ && wait_s_ > 0) {
+      stalled_ = true;
+      stalled_at_ack_ = last_ack;
+      if (!warned_) {
+        std::fprintf(
+            stderr,
+            "hwr-robot: --link: no batch slot freed in %.0f s: is hwr-ground running on the same URL? "
+            "Map batches are dropped from the link until it acknowledges again\n",
+            wait_s_);
+        warned_ = true;
+      }
+    }
   }
 
  private:
   hwr::mapio::MapStreamer* streamer_;
   double wait_s_;
+  bool stalled_ = false, warned_ = false;
+  int64_t stalled_at_ack_ = 0;
 };
 
 std::string utc_run_id() {
@@ -584,8 +601,17 @@ int run(const Args& args) {
         std::fprintf(
             stderr,
             "hwr-robot: --link: %d chunks not acknowledged after %.0f s (is hwr-ground running on the "
-            "same URL?); the map store still has everything\n",
-            ls.in_flight, args.link_wait_s);
+            "same URL?)%s\n",
+            ls.in_flight, args.link_wait_s, args.map_out.empty() ? "" : "; the map store has the whole map");
+        rc = 1;
+      }
+      if (ls.batches_refused > 0 || ls.encode_errors > 0) {
+        std::fprintf(
+            stderr,
+            "hwr-robot: --link: the ground station's map has holes: %lld batches refused, %lld chunks "
+            "not encoded%s\n",
+            static_cast<long long>(ls.batches_refused), static_cast<long long>(ls.encode_errors),
+            args.map_out.empty() ? "" : " (the map store has the whole map)");
         rc = 1;
       }
     }

@@ -219,11 +219,14 @@ core::Status verify_chunk(const hwr_lcm::map_chunk_t& c, const ChunkWireLimits& 
     return core::OutOfRange(where + ": negative id (run_id " + seq_text(c.run_id) + ", chunk_count " +
                             std::to_string(c.chunk_count) + "); all ids and counts must be >= 0");
   }
-  if (c.payload.empty() || c.payload.size() > limits.max_payload_bytes) {
+  // The one chunk without points: a segment's completing chunk when nothing was left to send
+  // (num_points 0, no payload, segment_complete 1).
+  const bool empty_completion = c.num_points == 0 && c.payload.empty() && c.segment_complete == 1;
+  if (!empty_completion && (c.payload.empty() || c.payload.size() > limits.max_payload_bytes)) {
     return core::OutOfRange(where + ": payload of " + std::to_string(c.payload.size()) +
                             " bytes, allowed 1.." + std::to_string(limits.max_payload_bytes));
   }
-  if (c.num_points < 1 || c.num_points > limits.max_points) {
+  if (!empty_completion && (c.num_points < 1 || c.num_points > limits.max_points)) {
     return core::OutOfRange(where + ": num_points " + std::to_string(c.num_points) + ", allowed 1.." +
                             std::to_string(limits.max_points));
   }

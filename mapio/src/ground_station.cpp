@@ -144,10 +144,19 @@ void GroundStation::on_chunk_message(const uint8_t* data, size_t size, int64_t n
 }
 
 core::Status GroundStation::write_maps(bool merged) {
+  // A segment that cannot be assembled (its files damaged on disk) is skipped and reported; the
+  // others are still written. The first error is returned.
+  core::Status first_error = core::Status::Ok();
+  auto note = [&](const core::Status& st) {
+    if (st.ok()) return true;
+    HWR_LOG_ERROR("ground", "map: %s", st.message().c_str());
+    if (first_error.ok()) first_error = st;
+    return false;
+  };
   std::vector<hwr_lcm::map_chunk_t> chunks;
   for (const auto& [robot, run_id] : store_.runs()) {
     const std::string dir = config_.out_dir + "/" + robot + "/" + std::to_string(run_id) + "/maps";
-    HWR_RETURN_IF_ERROR(make_dir(dir));
+    if (!note(make_dir(dir))) continue;
     WorldCloud all;
     std::map<int32_t, GroundStore::SegmentInfo> latest;  // per segment id: its newest complete version
     for (const GroundStore::SegmentInfo& s : store_.segments(robot, run_id)) {
@@ -156,29 +165,29 @@ core::Status GroundStation::write_maps(bool merged) {
       auto key = std::make_tuple(robot, run_id, s.segment_id, s.version);
       auto w = written_.find(key);
       if (w != written_.end() && w->second == s.chunk_count) continue;
-      HWR_RETURN_IF_ERROR(store_.load_segment(robot, run_id, s.segment_id, s.version, &chunks));
       WorldCloud cloud;
-      HWR_RETURN_IF_ERROR(assemble(chunks, config_.decode, &decoded_, &cloud));
+      if (!note(store_.load_segment(robot, run_id, s.segment_id, s.version, &chunks))) continue;
+      if (!note(assemble(chunks, config_.decode, &decoded_, &cloud))) continue;
       char name[64];
       std::snprintf(name, sizeof(name), "/segment_%06d_v%d", s.segment_id, s.version);
       const size_t n = cloud.xyz.size() / 3;
-      HWR_RETURN_IF_ERROR(write_ply(dir + name + ".ply", cloud.xyz.data(), cloud.rgb.data(), nullptr, n));
-      if (config_.write_pcd)
-        HWR_RETURN_IF_ERROR(write_pcd(dir + name + ".pcd", cloud.xyz.data(), cloud.rgb.data(), nullptr, n));
+      if (!note(write_ply(dir + name + ".ply", cloud.xyz.data(), cloud.rgb.data(), nullptr, n))) continue;
+      if (config_.write_pcd &&
+          !note(write_pcd(dir + name + ".pcd", cloud.xyz.data(), cloud.rgb.data(), nullptr, n)))
+        continue;
       written_[key] = s.chunk_count;
       ++stats_.segments_written;
     }
     if (!merged) continue;
     for (const auto& [id, s] : latest) {
-      HWR_RETURN_IF_ERROR(store_.load_segment(robot, run_id, s.segment_id, s.version, &chunks));
-      HWR_RETURN_IF_ERROR(assemble(chunks, config_.decode, &decoded_, &all));
+      if (!note(store_.load_segment(robot, run_id, s.segment_id, s.version, &chunks))) continue;
+      note(assemble(chunks, config_.decode, &decoded_, &all));
     }
     const size_t n = all.xyz.size() / 3;
-    HWR_RETURN_IF_ERROR(write_ply(dir + "/merged.ply", all.xyz.data(), all.rgb.data(), nullptr, n));
-    if (config_.write_pcd)
-      HWR_RETURN_IF_ERROR(write_pcd(dir + "/merged.pcd", all.xyz.data(), all.rgb.data(), nullptr, n));
+    note(write_ply(dir + "/merged.ply", all.xyz.data(), all.rgb.data(), nullptr, n));
+    if (config_.write_pcd) note(write_pcd(dir + "/merged.pcd", all.xyz.data(), all.rgb.data(), nullptr, n));
   }
-  return core::Status::Ok();
+  return first_error;
 }
 
 std::string GroundStation::status_line(int64_t now_ns) const {

@@ -104,10 +104,11 @@ struct MapStreamer::Impl {
   // Encodes [pts, pts + n) into one chunk, halving until it fits max_chunk_bytes.
   void encode_range(const Batch& b, const ChunkPoint* pts, const uint32_t* ids, int n, bool ends_complete) {
     ChunkCodecConfig codec = config.codec;
-    codec.max_payload_bytes = config.max_chunk_bytes;
     if (ids == nullptr) codec.with_point_ids = false;
     auto r = encode_chunk(pts, n, codec.with_point_ids ? ids : nullptr, nullptr, codec, &payload);
-    if (!r.ok() && r.status().code() == core::ErrorCode::kOutOfRange && n > 1) {
+    // Over max_chunk_bytes (checked here, not through the codec's own limit, whose error code other
+    // range errors share): halving cures it.
+    if (r.ok() && payload.size() > config.max_chunk_bytes && n > 1) {
       const int half = n / 2;
       encode_range(b, pts, ids, half, false);
       encode_range(b, pts + half, ids != nullptr ? ids + half : nullptr, n - half, ends_complete);
@@ -203,10 +204,14 @@ core::Expected<std::unique_ptr<MapStreamer>> MapStreamer::start(const std::strin
                                                                 const std::string& robot_id, int64_t run_id,
                                                                 const MapStreamerConfig& config) {
   if (config.batch_slots < 1 || config.max_batch_points < 1 || config.max_points_per_chunk < 1 ||
-      config.max_chunk_bytes < 1024) {
+      config.max_chunk_bytes < 1024 || config.max_chunk_bytes > config.link.window_bytes ||
+      config.link.window_chunks < 1 || !(config.link.initial_rto_ns > 0) ||
+      config.link.initial_rto_ns > config.link.max_rto_ns || config.link.rto_backoff < 1.0 ||
+      config.link.max_sends_per_service < 1) {
     return core::InvalidArgument(
         "map streamer: needs batch_slots >= 1, max_batch_points >= 1, max_points_per_chunk >= 1, "
-        "max_chunk_bytes >= 1024");
+        "1024 <= max_chunk_bytes <= link.window_bytes, link.window_chunks >= 1, "
+        "0 < link.initial_rto_ns <= link.max_rto_ns, link.rto_backoff >= 1, link.max_sends_per_service >= 1");
   }
   HWR_RETURN_IF_ERROR(GroundStore::validate_robot_id(robot_id));
   auto link = LcmLink::open(url);
@@ -242,6 +247,11 @@ bool MapStreamer::submit(int32_t segment_id, int32_t segment_version,
   b->n = n;
   std::copy(points_segment, points_segment + n, b->points.begin());
   if (ids != nullptr) std::copy(ids, ids + n, b->ids.begin());
+  {
+    // Before the batch is visible: a flush() from now on waits for the thread's next full pass.
+    std::lock_guard<std::mutex> lock(m.mu);
+    m.drained = false;
+  }
   m.submitted.fetch_add(1);
   if (!m.queue.try_push(b)) {  // cannot happen: as many queue places as batches
     m.submitted.fetch_sub(1);

@@ -210,6 +210,21 @@ TEST(VerifyChunk, RejectsEachMalformedCaseWithItsReason) {
       {"payload over limit", [](auto& c) { c.payload.resize(2001); }, true, core::ErrorCode::kOutOfRange,
        "payload of 2001 bytes, allowed 1..2000"},
       {"zero points", [](auto& c) { c.num_points = 0; }, true, core::ErrorCode::kOutOfRange, "num_points 0"},
+      {"zero points, no payload, not completing",
+       [](auto& c) {
+         c.num_points = 0;
+         c.payload.clear();
+         c.segment_complete = 0;
+       },
+       true, core::ErrorCode::kOutOfRange, "payload of 0 bytes"},
+      {"zero points, completing, but with a payload",
+       [](auto& c) {
+         c.num_points = 0;
+         c.segment_complete = 1;
+         c.chunk_index = 0;
+         c.chunk_count = 1;
+       },
+       true, core::ErrorCode::kOutOfRange, "num_points 0"},
       {"too many points", [](auto& c) { c.num_points = 10001; }, true, core::ErrorCode::kOutOfRange,
        "num_points 10001, allowed 1..10000"},
       {"segment_complete 2", [](auto& c) { c.segment_complete = 2; }, true, core::ErrorCode::kInvalidArgument,
@@ -268,6 +283,15 @@ TEST(VerifyChunk, AcceptsValidEdgeCases) {
   c.robot_id.assign(64, 'r');
   seal_chunk(&c);
   EXPECT_TRUE(verify_chunk(c, limits).ok()) << verify_chunk(c, limits).to_string();
+  // A segment's empty completing chunk: nothing was left to send when it closed.
+  c.num_points = 0;
+  c.payload.clear();
+  seal_chunk(&c);
+  EXPECT_TRUE(verify_chunk(c, limits).ok()) << verify_chunk(c, limits).to_string();
+  const auto bytes = encode(c);
+  hwr_lcm::map_chunk_t d;
+  ASSERT_TRUE(decode_chunk_message(bytes.data(), bytes.size(), &d).ok());
+  EXPECT_TRUE(verify_chunk(d, limits).ok());
 }
 
 TEST(DecodeChunkMessage, RoundTripIsExact) {

@@ -48,7 +48,8 @@ void seal_chunk(hwr_lcm::map_chunk_t* chunk);
 // A received chunk is trusted only when this returns OK. kCorruptData: CRC mismatch or payload_size
 // != payload.size(); kOutOfRange: a count, size or id outside its range, robot_id empty or too long;
 // kInvalidArgument: T_world_segment not finite or not a rotation (|R^T R - I| and |det R - 1| within
-// 1e-6), a flag not 0/1, chunk_index >= chunk_count on a segment_complete chunk.
+// 1e-6), a flag not 0/1, chunk_index >= chunk_count on a segment_complete chunk. The one chunk
+// allowed without points or payload is a segment's empty completing chunk (segment_complete 1).
 core::Status verify_chunk(const hwr_lcm::map_chunk_t& chunk, const ChunkWireLimits& limits);
 // Same for an acknowledgement: robot_id as above, run_id >= 0, cumulative_seq >= -1,
 // num_selective == selective.size() <= max_selective, every selective value > cumulative_seq,

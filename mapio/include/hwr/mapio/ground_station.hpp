@@ -74,6 +74,7 @@ class GroundStation {
     return n;
   }
   // Writes the maps of segments completed since the last call (and the merged maps when `merged`).
+  // A segment that fails (damaged files) is skipped and logged; the first error is returned.
   core::Status write_maps(bool merged);
 
   const GroundStationStats& stats() const { return stats_; }

@@ -10,7 +10,9 @@
 // tracker's own relative pose between the same two keyframes, each weighted by its information
 // (a maximum a posteriori estimate with the odometry as a Gaussian prior). A single keyframe pair
 // measures rotation 2-4x worse than the tracker, and over tens of junctions that error chains into
-// the segmented trajectory; the fused junction is never worse than the better of the two.
+// the segmented trajectory. With correct covariances the fused junction is, in expectation, no worse
+// than the better of the two; the prior's sigmas and orb_covariance_scale are fixed settings, so on
+// a given scene it can be slightly worse than the measurement alone (docs/reconstruction.md).
 
 #include <Eigen/Geometry>
 #include <memory>
