@@ -21,6 +21,7 @@
 
 #include <gtest/gtest.h>
 
+#include "sigkill_writer.hpp"
 #include "hwr/core/file_io.hpp"
 #include "hwr/mapio/chunk_wire.hpp"
 #include "hwr/mapio/ground_store.hpp"
@@ -513,16 +514,8 @@ TEST(GroundStore, GivenAWriterKilledAtRandomMomentsThenEveryListedChunkDecodesTo
   for (int round = 0; round < kRounds; ++round) {
     SCOPED_TRACE("round " + std::to_string(round));
     const int delay = delay_ms(rng);
-    const pid_t child = ::fork();
-    ASSERT_GE(child, 0) << "fork failed";
-    if (child == 0) crash_child(dir);
-    std::this_thread::sleep_for(std::chrono::milliseconds(delay));
-    ASSERT_EQ(::kill(child, SIGKILL), 0);
-    int wstatus = 0;
-    ASSERT_EQ(::waitpid(child, &wstatus, 0), child);
-    ASSERT_TRUE(WIFSIGNALED(wstatus) && WTERMSIG(wstatus) == SIGKILL)
-        << "the writer ended before the kill, exit status "
-        << (WIFEXITED(wstatus) ? WEXITSTATUS(wstatus) : -1);
+    hwr::test::kill_writer_after(delay, [&] { crash_child(dir); });
+    if (::testing::Test::HasFatalFailure()) return;
 
     if (!files_ending(dir, ".tmp").empty() || lone_payloads(dir) > 0) ++interrupted;
     GroundStore store = open_ok(dir);

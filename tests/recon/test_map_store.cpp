@@ -23,6 +23,7 @@
 
 #include <gtest/gtest.h>
 
+#include "sigkill_writer.hpp"
 #include "hwr/core/alloc_counter.hpp"
 #include "hwr/recon/map_store.hpp"
 
@@ -603,16 +604,8 @@ TEST(MapStore, GivenAWriterKilledAtRandomMomentsThenTheStoreLoadsWithAPrefixOfIt
   for (int round = 0; round < kRounds; ++round) {
     SCOPED_TRACE("round " + std::to_string(round));
     const int delay = delay_ms(rng);
-    const pid_t child = ::fork();
-    ASSERT_GE(child, 0) << "fork failed";
-    if (child == 0) crash_child(dir);
-    std::this_thread::sleep_for(std::chrono::milliseconds(delay));
-    ASSERT_EQ(::kill(child, SIGKILL), 0);
-    int wstatus = 0;
-    ASSERT_EQ(::waitpid(child, &wstatus, 0), child);
-    ASSERT_TRUE(WIFSIGNALED(wstatus) && WTERMSIG(wstatus) == SIGKILL)
-        << "the writer ended before the kill, exit status "
-        << (WIFEXITED(wstatus) ? WEXITSTATUS(wstatus) : -1);
+    hwr::test::kill_writer_after(delay, [&] { crash_child(dir); });
+    if (::testing::Test::HasFatalFailure()) return;
 
     if (fs::exists(dir + "/segments")) {
       for (const auto& e : fs::directory_iterator(dir + "/segments")) {
