@@ -33,6 +33,7 @@
 #include "hwr/hal/replay_source.hpp"
 #include "hwr/hal/stream_health.hpp"
 #include "hwr/mapio/map_streamer.hpp"
+#include "hwr_lcm/status_t.hpp"
 #include "hwr/recon/local_mapper.hpp"
 #include "hwr/recon/local_mapper_config.hpp"
 #include "hwr/recon/map_store.hpp"
@@ -119,6 +120,7 @@ struct Robot {
   hwr::estimation::PoseEstimator* estimator = nullptr;
   hwr::recon::LocalMapper* mapper = nullptr;
   hwr::recon::SegmentSink* segments = nullptr;
+  hwr::mapio::MapStreamer* streamer = nullptr;  // --link: map chunks and telemetry
   hwr::hal::StreamMonitor imu{200.0};
   hwr::hal::StreamMonitor camera{30.0};
   uint64_t mag = 0, gnss = 0, gnss_3d = 0;
@@ -158,7 +160,12 @@ void camera_task(void* ctx, int64_t) {
   hwr::hal::RgbdFrame* f = nullptr;
   while (r->streams->frames.try_pop(f)) {
     r->camera.check(*f);
-    r->estimator->process_frame(*f);
+    const hwr::estimation::TrackResult& tr = r->estimator->process_frame(*f);
+    if (r->streamer != nullptr) {
+      r->streamer->post_pose(f->t_ns, tr.T_world_cam,
+                             tr.state == hwr::estimation::TrackState::kTracking ||
+                                 tr.state == hwr::estimation::TrackState::kRecovered);
+    }
     r->streams->frame_pool.release(f);
   }
 }
@@ -173,12 +180,42 @@ void mapping_task(void* ctx, int64_t) {
   r->mapper->update(r->estimator->tracker().keyframes(), r->segments);
 }
 
+// HWR_STATUS for the ground station: per-task scheduler counters and the stream/estimation counters.
+void post_status(Robot* r, int64_t now_ns, const hwr::core::TaskTelemetry* t,
+                 const hwr::hal::SourceCounters& c) {
+  hwr_lcm::status_t s;
+  s.t_ns = now_ns;
+  s.num_tasks = static_cast<int32_t>(kTaskCount);
+  for (size_t i = 0; i < kTaskCount; ++i) {
+    s.task_name.emplace_back(t[i].name != nullptr ? t[i].name : "");
+    s.task_runs.push_back(static_cast<int64_t>(t[i].runs));
+    s.task_overruns.push_back(static_cast<int64_t>(t[i].overruns));
+    s.task_slips.push_back(static_cast<int64_t>(t[i].slips));
+  }
+  const auto e = r->estimator->counters();
+  const std::pair<const char*, int64_t> counters[] = {
+      {"camera.frames", static_cast<int64_t>(c.frames)},
+      {"camera.dropped", static_cast<int64_t>(c.frames_dropped)},
+      {"camera.gaps", static_cast<int64_t>(r->camera.health().gaps)},
+      {"imu.dropped", static_cast<int64_t>(r->streams->imu.dropped())},
+      {"tracker.keyframes", static_cast<int64_t>(e.tracker.keyframes)},
+      {"tracker.lost", static_cast<int64_t>(e.tracker.lost)},
+  };
+  for (const auto& [name, value] : counters) {
+    s.counter_name.emplace_back(name);
+    s.counter_value.push_back(value);
+  }
+  s.num_counters = static_cast<int32_t>(s.counter_name.size());
+  r->streamer->post_status(s);
+}
+
 void telemetry_task(void* ctx, int64_t now_ns) {
   auto* r = static_cast<Robot*>(ctx);
-  if (r->quiet) return;
   const hwr::hal::SourceCounters c = r->source->counters();
   hwr::core::TaskTelemetry t[kTaskCount];
   r->scheduler->snapshot(t, kTaskCount);
+  if (r->streamer != nullptr) post_status(r, now_ns, t, c);
+  if (r->quiet) return;
   uint64_t overruns = 0;
   for (const auto& x : t) overruns += x.overruns;
   const auto e = r->estimator->counters();
@@ -461,6 +498,7 @@ int run(const Args& args) {
   robot.estimator = estimator.get();
   robot.mapper = &mapper.value();
   robot.segments = &segments;
+  robot.streamer = streamer.get();
   robot.quiet = args.quiet;
   robot.imu = hwr::hal::StreamMonitor(info.imu_rate_hz > 0 ? info.imu_rate_hz : 200.0);
   robot.camera = hwr::hal::StreamMonitor(info.camera_rate_hz > 0 ? info.camera_rate_hz : 30.0);

@@ -16,6 +16,7 @@
 #include "hwr/mapio/chunk_wire.hpp"
 #include "hwr/mapio/ground_store.hpp"
 #include "hwr/mapio/lcm_link.hpp"
+#include "hwr_lcm/pose_t.hpp"
 
 namespace hwr::mapio {
 namespace {
@@ -25,6 +26,12 @@ int64_t steady_ns() {
              std::chrono::steady_clock::now().time_since_epoch())
       .count();
 }
+
+struct PoseSample {
+  int64_t t_ns = 0;
+  double T_world_cam[12] = {};
+  bool tracking = false;
+};
 
 struct Batch {
   int32_t segment_id = 0, segment_version = 0;
@@ -44,7 +51,10 @@ struct MapStreamer::Impl {
         link(std::move(l)),
         sender(robot_id, run_id, c.link),
         pool(static_cast<size_t>(c.batch_slots), prototype(c)),
-        queue(static_cast<size_t>(c.batch_slots)) {}
+        queue(static_cast<size_t>(c.batch_slots)),
+        poses(64),
+        robot_id_(robot_id),
+        run_id_(run_id) {}
 
   static Batch prototype(const MapStreamerConfig& c) {
     Batch b;
@@ -58,6 +68,13 @@ struct MapStreamer::Impl {
   ChunkSender sender;
   core::ObjectPool<Batch> pool;
   core::SpscRing<Batch*> queue;
+  core::SpscRing<PoseSample> poses;  // camera task -> streamer thread
+  std::string robot_id_;
+  int64_t run_id_;
+  hwr_lcm::status_t status_pending;  // under mu
+  bool status_due = false;           // under mu
+  hwr_lcm::status_t status_out;      // streamer thread
+  hwr_lcm::pose_t pose_out;          // streamer thread
   std::thread thread;
   std::atomic<bool> stop{false};
   std::atomic<int64_t> submitted{0};  // batches handed to the queue
@@ -166,6 +183,7 @@ struct MapStreamer::Impl {
         pending.pop_front();
       }
       sender.service(now, [this](const hwr_lcm::map_chunk_t& c) { publish(c); });
+      publish_telemetry();
       {
         std::lock_guard<std::mutex> lock(mu);
         const ChunkSender::Stats& s = sender.stats();
@@ -187,6 +205,35 @@ struct MapStreamer::Impl {
       } else if (r.value() > 0) {
         (void)link.drain();
       }
+    }
+  }
+
+  void publish_telemetry() {
+    PoseSample p;
+    int64_t published = 0;
+    while (poses.try_pop(p)) {
+      pose_out.t_ns = p.t_ns;
+      pose_out.robot_id = robot_id_;
+      pose_out.run_id = run_id_;
+      std::copy(p.T_world_cam, p.T_world_cam + 12, pose_out.T_world_cam);
+      pose_out.tracking = p.tracking ? 1 : 0;
+      pose_out.localized = 0;
+      if (link.publish(kChannelPose, pose_out).ok()) ++published;
+    }
+    bool send_status = false;
+    {
+      std::lock_guard<std::mutex> lock(mu);
+      stats.poses_published += published;
+      stats.poses_dropped = static_cast<int64_t>(poses.dropped());
+      if (status_due) {
+        status_out = status_pending;
+        status_due = false;
+        send_status = true;
+      }
+    }
+    if (send_status && link.publish(kChannelStatus, status_out).ok()) {
+      std::lock_guard<std::mutex> lock(mu);
+      ++stats.status_published;
     }
   }
 
@@ -274,6 +321,24 @@ bool MapStreamer::flush(double timeout_s) {
     if (m.drained && m.consumed.load() == m.submitted.load()) return true;
     if (m.cv.wait_until(lock, deadline) == std::cv_status::timeout) return false;
   }
+}
+
+void MapStreamer::post_pose(int64_t t_ns, const Eigen::Isometry3d& T_world_cam, bool tracking) {
+  PoseSample p;
+  p.t_ns = t_ns;
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 4; ++c) p.T_world_cam[4 * r + c] = T_world_cam.matrix()(r, c);
+  p.tracking = tracking;
+  impl_->poses.push_drop_oldest(p);
+}
+
+void MapStreamer::post_status(const hwr_lcm::status_t& status) {
+  Impl& m = *impl_;
+  std::lock_guard<std::mutex> lock(m.mu);
+  m.status_pending = status;
+  m.status_pending.robot_id = m.robot_id_;
+  m.status_pending.run_id = m.run_id_;
+  m.status_due = true;
 }
 
 MapStreamerStats MapStreamer::stats() const {

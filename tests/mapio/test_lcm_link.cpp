@@ -26,14 +26,14 @@ void round_trip(const std::string& url, size_t big_bytes) {
   pose.t_ns = 123456789;
   pose.robot_id = "r1";
   pose.run_id = 7;
-  for (int i = 0; i < 12; ++i) pose.T_world_body[i] = i * 0.5;
+  for (int i = 0; i < 12; ++i) pose.T_world_cam[i] = i * 0.5;
   int64_t received_t = 0;
   link->subscribe(kChannelPose, [&](const uint8_t* d, size_t n) {
     hwr_lcm::pose_t p;
     ASSERT_EQ(p.decode(d, 0, static_cast<int>(n)), static_cast<int>(n));
     received_t = p.t_ns;
     EXPECT_EQ(p.robot_id, "r1");
-    EXPECT_EQ(p.T_world_body[11], 5.5);
+    EXPECT_EQ(p.T_world_cam[11], 5.5);
   });
   std::vector<uint8_t> big(big_bytes);
   std::iota(big.begin(), big.end(), uint8_t{0});
@@ -79,8 +79,7 @@ TEST(LcmLink, GivenAFileLogThenItReplaysTheMessagesInOrder) {
       pose.t_ns = 1000 + i;
       pose.robot_id = "r";
       pose.run_id = 1;
-      for (double& v : pose.T_world_body) v = 0;
-      for (double& v : pose.velocity_world_mps) v = 0;
+      for (double& v : pose.T_world_cam) v = 0;
       pose.tracking = 1;
       pose.localized = 0;
       ASSERT_TRUE(writer->publish(kChannelPose, pose).ok());

@@ -25,7 +25,10 @@
 
 #include "hwr/mapio/cloud_writers.hpp"
 #include "hwr/mapio/ground_store.hpp"
+#include "hwr/mapio/lcm_link.hpp"
 #include "hwr/mapio/map_streamer.hpp"
+#include "hwr_lcm/pose_t.hpp"
+#include "hwr_lcm/status_t.hpp"
 #include "private_netns.hpp"
 
 extern char** environ;
@@ -237,6 +240,59 @@ HWR_LINK_TEST(GivenACleanLinkThenEveryPointArrivesOnce, Fault{})
 HWR_LINK_TEST(GivenTenPercentPacketLossThenEveryPointArrivesOnce, Fault{10.0, -1, 0, -1})
 HWR_LINK_TEST(GivenAFiveSecondCutThenEveryPointArrivesOnce, Fault{0, 0.5, 5.0, -1})
 HWR_LINK_TEST(GivenTheGroundStationKilledMidStreamThenEveryPointArrivesOnce, Fault{0, -1, 0, 1.0})
+
+// Telemetry rides the streamer's thread: every posted pose (fewer than the ring holds) and the
+// latest status arrive on HWR_POSE / HWR_STATUS with the robot's ids.
+TEST(LinkUdpFaults, GivenPostedPosesAndStatusThenTheyArriveOnTheirChannels) {
+  if (!test::in_private_netns()) {
+    HWR_RUN_IN_PRIVATE_NETNS();
+    return;
+  }
+  ASSERT_TRUE(test::setup_private_loopback());
+  auto listener = LcmLink::open(kUrl);
+  ASSERT_TRUE(listener.ok()) << listener.status().message();
+  std::vector<hwr_lcm::pose_t> poses;
+  std::vector<hwr_lcm::status_t> status;
+  listener->subscribe(kChannelPose, [&](const uint8_t* d, size_t n) {
+    hwr_lcm::pose_t p;
+    if (p.decode(d, 0, static_cast<int>(n)) == static_cast<int>(n)) poses.push_back(p);
+  });
+  listener->subscribe(kChannelStatus, [&](const uint8_t* d, size_t n) {
+    hwr_lcm::status_t st;
+    if (st.decode(d, 0, static_cast<int>(n)) == static_cast<int>(n)) status.push_back(st);
+  });
+  auto streamer = MapStreamer::start(kUrl, "robot-tel", 7, MapStreamerConfig{});
+  ASSERT_TRUE(streamer.ok()) << streamer.status().message();
+  for (int i = 0; i < 20; ++i) {
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    T.translation() = Eigen::Vector3d(0.1 * i, 0, 0);
+    (*streamer)->post_pose(1000 + i, T, i % 2 == 0);
+  }
+  hwr_lcm::status_t st;
+  st.t_ns = 5;
+  st.num_tasks = 1;
+  st.task_name = {"camera"};
+  st.task_runs = {30};
+  st.task_overruns = {2};
+  st.task_slips = {0};
+  st.num_counters = 0;
+  (*streamer)->post_status(st);
+  for (int i = 0; i < 200 && (poses.size() < 20 || status.empty()); ++i)
+    ASSERT_TRUE(listener->handle(10).ok());
+  ASSERT_EQ(poses.size(), 20u);
+  for (int i = 0; i < 20; ++i) {
+    EXPECT_EQ(poses[static_cast<size_t>(i)].t_ns, 1000 + i);
+    EXPECT_EQ(poses[static_cast<size_t>(i)].robot_id, "robot-tel");
+    EXPECT_EQ(poses[static_cast<size_t>(i)].run_id, 7);
+    EXPECT_DOUBLE_EQ(poses[static_cast<size_t>(i)].T_world_cam[3], 0.1 * i);
+    EXPECT_EQ(poses[static_cast<size_t>(i)].tracking, i % 2 == 0 ? 1 : 0);
+  }
+  ASSERT_EQ(status.size(), 1u);
+  EXPECT_EQ(status[0].robot_id, "robot-tel");
+  EXPECT_EQ(status[0].task_name, std::vector<std::string>{"camera"});
+  EXPECT_EQ(status[0].task_overruns, std::vector<int64_t>{2});
+  EXPECT_EQ((*streamer)->stats().poses_published, 20);
+}
 
 }  // namespace
 }  // namespace hwr::mapio

@@ -20,6 +20,7 @@
 #include "hwr/core/status.hpp"
 #include "hwr/mapio/chunk_codec.hpp"
 #include "hwr/mapio/chunk_sender.hpp"
+#include "hwr_lcm/status_t.hpp"
 
 namespace hwr::mapio {
 
@@ -55,6 +56,7 @@ struct MapStreamerStats {
   int in_flight = 0;
   int64_t link_errors = 0;
   int64_t last_ack_ns = 0;  // steady clock
+  int64_t poses_published = 0, poses_dropped = 0, status_published = 0;
 };
 
 class MapStreamer {
@@ -71,6 +73,11 @@ class MapStreamer {
   bool submit(int32_t segment_id, int32_t segment_version, const Eigen::Isometry3d& T_world_segment,
               const ChunkPoint* points_segment, const uint32_t* ids, int n, bool segment_complete,
               double wait_s = 0.0);
+  // Telemetry, published by the streamer thread so the caller never waits on the network:
+  // HWR_POSE (a ring of 64 poses; a full ring drops the oldest, counted in stats) and HWR_STATUS
+  // (the latest one replaces one not yet sent). robot_id and run_id are filled in.
+  void post_pose(int64_t t_ns, const Eigen::Isometry3d& T_world_cam, bool tracking);
+  void post_status(const hwr_lcm::status_t& status);
   // Waits until everything submitted has been acknowledged (true) or timeout_s passed (false).
   bool flush(double timeout_s);
   MapStreamerStats stats() const;
