@@ -42,15 +42,14 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
-#include <ctime>
 #include <memory>
 #include <random>
 #include <string>
 #include <vector>
 
 #include <Eigen/Geometry>
-#include <sys/resource.h>
 
+#include "thread_clock.hpp"
 #include "bench_command.hpp"
 #include "hwr/recon/keyframe_cloud.hpp"
 #include "hwr/recon/ndt.hpp"
@@ -71,18 +70,6 @@ namespace {
 
 constexpr double kSuccessTranslationM = 0.05;
 constexpr double kSuccessRotationDeg = 1.0;
-
-double thread_cpu_s() {
-  timespec ts{};
-  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
-  return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
-}
-
-double thread_sys_s() {
-  rusage ru{};
-  getrusage(RUSAGE_THREAD, &ru);
-  return static_cast<double>(ru.ru_stime.tv_sec) + 1e-6 * static_cast<double>(ru.ru_stime.tv_usec);
-}
 
 double median(std::vector<double> v) {
   if (v.empty()) return std::nan("");

@@ -5,9 +5,8 @@
 
 #include <chrono>
 #include <cmath>
-#include <ctime>
 
-#include <sys/resource.h>
+#include "thread_clock.hpp"
 
 #ifndef HWR_HAVE_PCL
 #define HWR_HAVE_PCL 0
@@ -26,19 +25,6 @@ namespace hwr::bench {
 namespace {
 
 #if HWR_HAVE_PCL
-
-double thread_cpu_s() {
-  timespec ts{};
-  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
-  return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
-}
-
-// Kernel time of this thread (RUSAGE_THREAD, Linux).
-double thread_sys_s() {
-  rusage ru{};
-  getrusage(RUSAGE_THREAD, &ru);
-  return static_cast<double>(ru.ru_stime.tv_sec) + 1e-6 * static_cast<double>(ru.ru_stime.tv_usec);
-}
 
 pcl::PointCloud<pcl::PointXYZ>::Ptr to_pcl(const XyzCloud& c) {
   pcl::PointCloud<pcl::PointXYZ>::Ptr out(new pcl::PointCloud<pcl::PointXYZ>);

@@ -72,4 +72,14 @@ Status write_file_atomic(const std::string& path, const std::vector<unsigned cha
   return write_bytes_atomic(path, bytes.data(), bytes.size());
 }
 
+Status fsync_directory(const std::string& dir) {
+  const int fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  if (fd < 0) return IoError(dir + ": cannot open directory for fsync: " + std::strerror(errno));
+  int err = 0;
+  if (::fsync(fd) != 0) err = errno;
+  ::close(fd);
+  if (err != 0) return IoError(dir + ": directory fsync failed: " + std::strerror(err));
+  return Status::Ok();
+}
+
 }  // namespace hwr::core

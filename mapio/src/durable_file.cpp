@@ -11,16 +11,6 @@
 
 namespace hwr::mapio::detail {
 
-core::Status fsync_directory(const std::string& dir) {
-  const int fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
-  if (fd < 0) return core::IoError(dir + ": cannot open folder for fsync: " + std::strerror(errno));
-  int err = 0;
-  if (::fsync(fd) != 0) err = errno;
-  ::close(fd);
-  if (err != 0) return core::IoError(dir + ": folder fsync failed: " + std::strerror(err));
-  return core::Status::Ok();
-}
-
 std::string parent_directory(const std::string& path) {
   const size_t slash = path.find_last_of('/');
   if (slash == std::string::npos) return ".";
@@ -68,7 +58,7 @@ core::Status AtomicFileWriter::commit() {
     std::remove(tmp_.c_str());
     return core::IoError(path_ + ": write failed: " + std::strerror(err));
   }
-  return fsync_directory(parent_directory(path_));
+  return core::fsync_directory(parent_directory(path_));
 }
 
 }  // namespace hwr::mapio::detail

@@ -1,9 +1,8 @@
 #pragma once
 // Crash-safe file primitives shared by the ground store and the cloud writers (private to mapio).
-// core/file_io.hpp writes whole in-memory files atomically; these add what it lacks: the directory
-// fsync that makes a rename durable, and a streaming atomic writer for files too large to build in
-// memory first (a merged map of millions of points). Same protocol as core: PATH.tmp, fsync,
-// rename over PATH, then fsync of the directory.
+// core/file_io.hpp writes whole in-memory files atomically and fsyncs directories; this adds a
+// streaming atomic writer for files too large to build in memory first (a merged map of millions of points).
+// Same protocol as core: PATH.tmp, fsync, rename over PATH, then fsync of the directory.
 
 #include <cstddef>
 #include <string>
@@ -11,9 +10,6 @@
 #include "hwr/core/status.hpp"
 
 namespace hwr::mapio::detail {
-
-// fsync(2) of a directory: makes the entries created, renamed or removed in it durable.
-core::Status fsync_directory(const std::string& dir);
 
 // The folder part of a path ("." when it has none).
 std::string parent_directory(const std::string& path);

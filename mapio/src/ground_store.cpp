@@ -147,7 +147,7 @@ core::Status read_stored_chunk(const std::string& path, hwr_lcm::map_chunk_t* ou
 
 // mkdir of one level; fsync of its parent when it was created, so the new entry is durable.
 core::Status make_dir(const std::string& parent, const std::string& dir) {
-  if (::mkdir(dir.c_str(), 0755) == 0) return detail::fsync_directory(parent);
+  if (::mkdir(dir.c_str(), 0755) == 0) return core::fsync_directory(parent);
   if (errno == EEXIST) {
     struct stat st {};
     if (::stat(dir.c_str(), &st) == 0 && S_ISDIR(st.st_mode)) return core::Status::Ok();
@@ -393,7 +393,7 @@ core::Status GroundStore::State::scan_segment(const std::string& robot_id, int64
     note(path + ": payload without its .lcm (interrupted or corrupt chunk), removed");
     changed = true;
   }
-  if (changed) return detail::fsync_directory(dir);
+  if (changed) return core::fsync_directory(dir);
   return core::Status::Ok();
 }
 
@@ -482,7 +482,7 @@ core::Status GroundStore::put(const hwr_lcm::map_chunk_t& chunk, bool* was_new) 
   const std::string stem = seg_dir + "/" + chunk_stem(chunk.chunk_index);
   HWR_RETURN_IF_ERROR(core::write_file_atomic(stem + ".drc", chunk.payload));
   HWR_RETURN_IF_ERROR(core::write_file_atomic(stem + ".lcm", encoded));
-  HWR_RETURN_IF_ERROR(detail::fsync_directory(seg_dir));
+  HWR_RETURN_IF_ERROR(core::fsync_directory(seg_dir));
   state_->index(chunk);
   if (was_new != nullptr) *was_new = true;
   return core::Status::Ok();

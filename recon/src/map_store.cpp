@@ -438,11 +438,11 @@ core::Expected<MapStore> MapStore::open(const std::string& dir, const StoreMetad
     std::remove(tmp.c_str());
     return st;
   }
-  HWR_RETURN_IF_ERROR(store_detail::fsync_directory(dir));
+  HWR_RETURN_IF_ERROR(core::fsync_directory(dir));
   if (!existed) {
     // Make the new directory's own entry durable too (best effort: the parent may be unreadable).
     const fs::path parent = fs::absolute(fs::path(dir), ec).parent_path();
-    if (!ec) (void)store_detail::fsync_directory(parent.string());
+    if (!ec) (void)core::fsync_directory(parent.string());
   }
   return MapStore(dir, metadata);
 }
@@ -494,7 +494,7 @@ core::Status MapStore::write_segment(const SegmentRecord& segment) {
     HWR_RETURN_IF_ERROR(store_detail::write_file_synced(join(tmp, kCloudBin), cloud_spans, 2));
     const ByteSpan yaml_span{yaml.data(), yaml.size()};
     HWR_RETURN_IF_ERROR(store_detail::write_file_synced(join(tmp, kSegmentYaml), &yaml_span, 1));
-    HWR_RETURN_IF_ERROR(store_detail::fsync_directory(tmp));
+    HWR_RETURN_IF_ERROR(core::fsync_directory(tmp));
     // The commit point: before it the segment is absent, after it complete.
     if (std::rename(tmp.c_str(), final_dir.c_str()) != 0) {
       const int err = errno;
@@ -511,7 +511,7 @@ core::Status MapStore::write_segment(const SegmentRecord& segment) {
     fs::remove_all(tmp, ec);
     return st;
   }
-  return store_detail::fsync_directory(segments);
+  return core::fsync_directory(segments);
 }
 
 core::Expected<std::vector<SegmentSummary>> MapStore::list_segments() const {

@@ -28,16 +28,6 @@ core::Status write_file_synced(const std::string& path, const ByteSpan* spans, s
   return core::Status::Ok();
 }
 
-core::Status fsync_directory(const std::string& dir) {
-  const int fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
-  if (fd < 0) return core::IoError(dir + ": cannot open directory for fsync: " + errno_text(errno));
-  int err = 0;
-  if (::fsync(fd) != 0) err = errno;
-  ::close(fd);
-  if (err != 0) return core::IoError(dir + ": directory fsync failed: " + errno_text(err));
-  return core::Status::Ok();
-}
-
 core::Status ReadFile::open(const std::string& path, ReadFile* out) {
   const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
   if (fd < 0) {

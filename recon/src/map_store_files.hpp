@@ -1,6 +1,6 @@
 #pragma once
 // POSIX file primitives of the map store's atomic protocol (map_store.hpp): whole-file writes that
-// are fsync'ed before they return, directory fsync (so a rename or a new entry is durable), and
+// are fsync'ed before they return, directory fsync is core::fsync_directory, and
 // bounded reads at an offset. Every error names the path and carries strerror(errno).
 
 #include <cstddef>
@@ -20,9 +20,6 @@ struct ByteSpan {
 // Creates `path` (it must not exist: O_EXCL), writes the spans in order, fsyncs and closes it.
 // kIoError on any failure (the partial file is left for the caller's temp-directory cleanup).
 core::Status write_file_synced(const std::string& path, const ByteSpan* spans, size_t n_spans);
-
-// fsync of a directory: makes the entries created or renamed in it durable.
-core::Status fsync_directory(const std::string& dir);
 
 // A read-only file descriptor that closes itself.
 class ReadFile {

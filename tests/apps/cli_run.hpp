@@ -5,6 +5,8 @@
 #include <sys/wait.h>
 
 #include <cstdio>
+#include <map>
+#include <sstream>
 #include <string>
 
 namespace hwr::testing {
@@ -25,6 +27,19 @@ inline CliRun run_cli(const std::string& program, const std::string& args) {
   const int status = ::pclose(p);
   r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
   return r;
+}
+
+// The `key=value` lines (no spaces) of a program's output.
+inline std::map<std::string, std::string> key_values(const std::string& out) {
+  std::map<std::string, std::string> kv;
+  std::istringstream in(out);
+  std::string line;
+  while (std::getline(in, line)) {
+    const size_t eq = line.find('=');
+    if (eq != std::string::npos && line.find(' ') == std::string::npos)
+      kv[line.substr(0, eq)] = line.substr(eq + 1);
+  }
+  return kv;
 }
 
 }  // namespace hwr::testing

@@ -30,17 +30,7 @@ using hwr::testing::CliRun;
 
 const std::string kEval = HWR_BINARY_DIR "/apps/hwr-eval/hwr-eval";
 
-std::map<std::string, std::string> key_values(const std::string& out) {
-  std::map<std::string, std::string> kv;
-  std::istringstream in(out);
-  std::string line;
-  while (std::getline(in, line)) {
-    const size_t eq = line.find('=');
-    if (eq != std::string::npos && line.find(' ') == std::string::npos)
-      kv[line.substr(0, eq)] = line.substr(eq + 1);
-  }
-  return kv;
-}
+using hwr::testing::key_values;
 
 std::string num(double v) {
   char buf[40];

@@ -25,17 +25,7 @@ const std::string kEval = HWR_BINARY_DIR "/apps/hwr-eval/hwr-eval";
 
 CliRun run_eval(const std::string& args) { return hwr::testing::run_cli(kEval, args); }
 
-std::map<std::string, std::string> key_values(const std::string& out) {
-  std::map<std::string, std::string> kv;
-  std::istringstream in(out);
-  std::string line;
-  while (std::getline(in, line)) {
-    const size_t eq = line.find('=');
-    if (eq != std::string::npos && line.find(' ') == std::string::npos)
-      kv[line.substr(0, eq)] = line.substr(eq + 1);
-  }
-  return kv;
-}
+using hwr::testing::key_values;
 
 class HwrEvalCli : public ::testing::Test {
  protected:

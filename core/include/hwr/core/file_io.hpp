@@ -22,4 +22,8 @@ Status write_file_atomic(const std::string& path, const std::vector<unsigned cha
 // or the errno of the failed write.
 int write_all_fd(int fd, const void* data, size_t size);
 
+// fsync(2) of a directory: makes the entries created, renamed or removed in it durable (the last
+// step of a crash-safe write: temp file, fsync, rename, fsync of the directory).
+Status fsync_directory(const std::string& dir);
+
 }  // namespace hwr::core
