@@ -208,11 +208,15 @@ TEST(LocalMapper, GivenOdometryAsGoodAsItsPriorThenFusedJunctionsBeatTheOdometry
     odometry_m += translation_error_m(T_a_b_true, T_odometry);
   }
   EXPECT_EQ(fused, static_cast<int>(run.segments.size()) - 1);
-  // Translation: better than both. Rotation: better than the odometry and close to the measurement
-  // (the default orb_covariance_scale is set for real depth noise, so on these rendered keyframes
-  // it weights the ORB rotation less than it deserves; measured: 0.0081 vs 0.0064 rad).
-  EXPECT_LT(fused_m, measured_m);
-  EXPECT_LT(fused_m, odometry_m);
+  // FLANN seeds its LSH tables from std::random_device (flann/util/lsh_table.h), so the ORB matches,
+  // and with them the measurement, differ from run to run. Measured over 5 runs (10 junctions
+  // each): fused 0.0211-0.0218 m, measurement alone 0.0210-0.0246 m, odometry 0.0371 m.
+  // Translation: far better than the odometry and no worse than the measurement beyond that spread.
+  // Rotation: better than the odometry and close to the measurement (the default
+  // orb_covariance_scale is set for real depth noise, so on these rendered keyframes it weights the
+  // ORB rotation less than it deserves; measured: 0.0081 vs 0.0064 rad).
+  EXPECT_LT(fused_m, 0.75 * odometry_m);
+  EXPECT_LT(fused_m, 1.15 * measured_m);
   EXPECT_LT(fused_rad, odometry_rad);
   EXPECT_LT(fused_rad, 1.5 * measured_rad);
   // Disabled, the junction is the measurement alone (the paper's method).
