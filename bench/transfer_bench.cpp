@@ -307,6 +307,14 @@ int run_transfer_command(int argc, char** argv) {
       encode_rate * 1e-6, decode_rate * 1e-6,
       static_cast<double>(codec.payload_bytes) / std::max<int64_t>(1, codec.points),
       static_cast<long long>(codec.errors));
+  // The same chunks with lossless colour (one Draco kd-tree cloud per chunk), for the bytes it costs.
+  mapio::MapStreamerConfig lossless_config = o.streamer;
+  lossless_config.codec.color_bits = 8;
+  const CodecThroughput lossless = measure_codec(largest, lossless_config);
+  const double lossless_ratio = static_cast<double>(lossless.payload_bytes) /
+                                (15.0 * static_cast<double>(std::max<int64_t>(1, lossless.points)));
+  std::printf("lossless colour (color_bits 8): %.3f bytes/point, %.2fx fewer than raw\n",
+              15.0 * lossless_ratio, 1.0 / lossless_ratio);
   std::printf("mapping rate %.0f points/s: one core encodes %.1fx faster -> %s\n", mapping_rate,
               encode_rate / mapping_rate, encode_rate >= mapping_rate ? "keeps up" : "DOES NOT keep up");
 
@@ -377,6 +385,7 @@ int run_transfer_command(int argc, char** argv) {
   double lat_ours_max = 0, lat_direct_max = 0, ratio_max = 0, payload_ratio_max = 0, err_axis_max = 0,
          err_max = 0;
   int64_t unmatched = 0, backlog_max = 0, backlog_any_max = 0, waited = 0, failures = 0, resends = 0;
+  int color_err_max = 0;
   bool all_verified = !rows.empty();
   char line[320];
   for (const Row& row : rows) {
@@ -400,6 +409,7 @@ int run_transfer_command(int argc, char** argv) {
       payload_ratio_max = std::max(payload_ratio_max, static_cast<double>(r->streamer.payload_bytes) / raw);
       err_axis_max = std::max(err_axis_max, r->max_axis_error_mm);
       err_max = std::max(err_max, r->max_error_mm);
+      color_err_max = std::max(color_err_max, r->max_color_error);
       unmatched += r->unmatched;
       resends += r->streamer.resends;
       all_verified = all_verified && r->verified;
@@ -442,6 +452,8 @@ int run_transfer_command(int argc, char** argv) {
     std::printf("payload_ratio_vs_raw=%.4f\n", payload_ratio_max);
     std::printf("max_position_error_mm=%.4f\n", all_verified ? err_axis_max : NAN);
     std::printf("max_position_error_euclid_mm=%.4f\n", all_verified ? err_max : NAN);
+    std::printf("color_bits=%d\n", o.streamer.codec.color_bits);
+    std::printf("max_color_error=%d\n", all_verified ? color_err_max : -1);
     std::printf("decoded_points_unmatched=%lld\n", static_cast<long long>(unmatched));
     std::printf("resends=%lld\n", static_cast<long long>(resends));
     std::printf("backlog_points_at_stop_max=%lld\n", static_cast<long long>(backlog_max));
@@ -454,6 +466,7 @@ int run_transfer_command(int argc, char** argv) {
     std::printf("payload_ratio_vs_raw=%.4f\n",
                 static_cast<double>(codec.payload_bytes) / (15.0 * static_cast<double>(codec.points)));
   }
+  std::printf("payload_ratio_lossless_color=%.4f\n", lossless_ratio);
   std::printf("encode_points_per_s_one_core=%.0f\n", encode_rate);
   std::printf("decode_points_per_s_one_core=%.0f\n", decode_rate);
   std::printf("mapping_points_per_s=%.0f\n", mapping_rate);

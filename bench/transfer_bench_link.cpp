@@ -31,10 +31,12 @@ int64_t steady_ns() {
 
 // Decoded points of one chunk against the submitted ones: Draco's kd-tree coder reorders points
 // within a chunk, so each decoded point is matched to the nearest unused submitted point of the same
-// colour and flags (lossless attributes), searched first within kRadiusM (twice the codec's 1 mm
-// per-axis bound) on a hash grid, then, when nothing is there, over the whole chunk.
+// flags and the same colour as the codec keeps it (reduce_color_channel at color_bits), searched first
+// within kRadiusM (twice the codec's 1 mm per-axis bound) on a hash grid, then, when nothing is there,
+// over the whole chunk.
 class ChunkMatcher {
  public:
+  explicit ChunkMatcher(int color_bits) : color_bits_(color_bits) {}
   void match(const std::vector<mapio::ChunkPoint>& ref, const std::vector<mapio::ChunkPoint>& dec,
              TransferResult* r) {
     head_.clear();
@@ -55,7 +57,8 @@ class ChunkMatcher {
       double best_d2 = INFINITY;
       auto consider = [&](int i) {
         const mapio::ChunkPoint& p = ref[static_cast<size_t>(i)];
-        if (used_[static_cast<size_t>(i)] || p.r != d.r || p.g != d.g || p.b != d.b || p.flags != d.flags)
+        if (used_[static_cast<size_t>(i)] || reduced(p.r) != d.r || reduced(p.g) != d.g ||
+            reduced(p.b) != d.b || p.flags != d.flags)
           return;
         const double dx = p.x_m - d.x_m, dy = p.y_m - d.y_m, dz = p.z_m - d.z_m;
         const double d2 = dx * dx + dy * dy + dz * dz;
@@ -87,10 +90,14 @@ class ChunkMatcher {
                                   std::abs(static_cast<double>(p.z_m) - d.z_m)});
       r->max_axis_error_mm = std::max(r->max_axis_error_mm, ax * 1e3);
       r->max_error_mm = std::max(r->max_error_mm, std::sqrt(best_d2) * 1e3);
+      r->max_color_error =
+          std::max({r->max_color_error, std::abs(p.r - d.r), std::abs(p.g - d.g), std::abs(p.b - d.b)});
     }
   }
 
  private:
+  uint8_t reduced(uint8_t v) const { return mapio::reduce_color_channel(v, color_bits_); }
+  int color_bits_;
   static constexpr double kCellM = 0.004;
   static constexpr double kRadiusM = 0.002;
   static constexpr int kMaxFallbacksPerChunk = 64;
@@ -106,7 +113,8 @@ class ChunkMatcher {
 
 // Reads the run back from the ground store (CRC-checked), decodes every chunk and compares it with
 // the submitted points of its segment, in submission order (chunks are cut in that order).
-core::Status verify_store(const std::string& dir, int64_t run_id, const PointStream& map, TransferResult* r) {
+core::Status verify_store(const std::string& dir, int64_t run_id, const PointStream& map, int color_bits,
+                          TransferResult* r) {
   std::map<int32_t, std::vector<std::pair<size_t, int>>> ranges;  // segment -> (first, n) in submit order
   for (const StreamBatch& b : map.batches)
     if (b.n > 0) ranges[b.segment_id].emplace_back(b.first, b.n);
@@ -115,7 +123,7 @@ core::Status verify_store(const std::string& dir, int64_t run_id, const PointStr
   std::vector<hwr_lcm::map_chunk_t> chunks;
   mapio::DecodedChunk decoded;
   std::vector<mapio::ChunkPoint> ref;
-  ChunkMatcher matcher;
+  ChunkMatcher matcher(color_bits);
   for (const auto& seg : store->segments(kRobotId, run_id)) {
     HWR_RETURN_IF_ERROR(store->load_segment(kRobotId, run_id, seg.segment_id, seg.version, &chunks));
     const auto& rs = ranges[seg.segment_id];
@@ -278,7 +286,7 @@ TransferResult run_transfer(const PointStream& map, TransferMode mode, int64_t r
   station.value().reset();  // releases the store's lock
 
   if (r.ok && setup.verify_points) {
-    const core::Status st = verify_store(dir, run_id, map, &r);
+    const core::Status st = verify_store(dir, run_id, map, setup.streamer.codec.color_bits, &r);
     if (!st.ok()) {
       r.ok = false;
       r.error = "verifying the ground store: " + st.message();

@@ -43,10 +43,12 @@ struct TransferResult {
   // Streamed: points submitted but not yet encoded just before the last batch (0: encoding kept up),
   // the largest such backlog at any submit, and submits that found every batch slot busy.
   int64_t backlog_points_at_stop = 0, max_backlog_points = 0, submits_waited = 0;
-  // verify_points: per-axis (L-inf) and Euclidean distance to the matched submitted point, and
-  // decoded points without a partner of the same colour (must be 0).
+  // verify_points: per-axis (L-inf) and Euclidean distance to the matched submitted point, the
+  // largest colour channel difference (0 at color_bits 8), and decoded points without a partner of
+  // the same (reduced) colour (must be 0).
   bool verified = false;
   double max_axis_error_mm = 0, max_error_mm = 0;
+  int max_color_error = 0;
   int64_t points_checked = 0, unmatched = 0;
 };
 

@@ -193,6 +193,7 @@ void post_status(Robot* r, int64_t now_ns, const hwr::core::TaskTelemetry* t,
     s.task_slips.push_back(static_cast<int64_t>(t[i].slips));
   }
   const auto e = r->estimator->counters();
+  const hwr::mapio::MapStreamerStats ls = r->streamer->stats();
   const std::pair<const char*, int64_t> counters[] = {
       {"camera.frames", static_cast<int64_t>(c.frames)},
       {"camera.dropped", static_cast<int64_t>(c.frames_dropped)},
@@ -200,6 +201,11 @@ void post_status(Robot* r, int64_t now_ns, const hwr::core::TaskTelemetry* t,
       {"imu.dropped", static_cast<int64_t>(r->streams->imu.dropped())},
       {"tracker.keyframes", static_cast<int64_t>(e.tracker.keyframes)},
       {"tracker.lost", static_cast<int64_t>(e.tracker.lost)},
+      {"link.chunks", ls.chunks},
+      {"link.resends", ls.resends},
+      {"link.batches_refused", ls.batches_refused},
+      {"link.completions_owed", ls.completions_owed},
+      {"link.completions_lost", ls.completions_lost},
   };
   for (const auto& [name, value] : counters) {
     s.counter_name.emplace_back(name);
@@ -627,12 +633,15 @@ int run(const Args& args) {
       const hwr::mapio::MapStreamerStats ls = streamer->stats();
       std::printf(
           "link: %lld chunks, %lld points, %.2f MB (raw %.2f MB, %.1fx smaller), sends %lld, resends %lld, "
-          "acked %lld, refused batches %lld, encode errors %lld; %s %.2f s after the stop\n",
+          "acked %lld, refused batches %lld (completions owed %lld, lost %lld), encode errors %lld; %s %.2f "
+          "s "
+          "after the stop\n",
           static_cast<long long>(ls.chunks), static_cast<long long>(ls.points), ls.payload_bytes * 1e-6,
           ls.raw_bytes * 1e-6,
           ls.payload_bytes > 0 ? static_cast<double>(ls.raw_bytes) / ls.payload_bytes : 0.0,
           static_cast<long long>(ls.sends), static_cast<long long>(ls.resends),
           static_cast<long long>(ls.acked), static_cast<long long>(ls.batches_refused),
+          static_cast<long long>(ls.completions_owed), static_cast<long long>(ls.completions_lost),
           static_cast<long long>(ls.encode_errors), all_acked ? "all acknowledged" : "NOT all acknowledged",
           waited_s);
       if (!all_acked) {

@@ -4,6 +4,8 @@
 #include <cassert>
 #include <utility>
 
+#include "hwr/mapio/chunk_wire.hpp"
+
 namespace hwr::mapio {
 
 AckTracker::AckTracker(std::string robot_id, int64_t run_id, int capacity, int max_selective)
@@ -72,7 +74,7 @@ void AckTracker::make_ack(hwr_lcm::chunk_ack_t* ack, bool resume_report) const {
     if (seq <= highest_) ack->selective.push_back(seq);
     ++seq;
   }
-  ack->num_selective = static_cast<int32_t>(ack->selective.size());
+  seal_ack(ack);  // num_selective and the CRC32 (t_ns is outside it: the caller stamps it later)
 }
 
 void AckTracker::reset() {

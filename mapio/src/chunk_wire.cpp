@@ -34,6 +34,9 @@ class LeWriter {
   }
   const uint8_t* data() const { return buf_; }
   size_t size() const { return n_; }
+  // Room for at least this many more bytes.
+  size_t room() const { return sizeof(buf_) - n_; }
+  void clear() { n_ = 0; }
 
  private:
   // The fixed fields after robot_id: 8+8+4+4+4+1+4+12*8+4+1+4+4 = 142 bytes.
@@ -162,15 +165,20 @@ core::Status check_message_size(size_t size, const ChunkWireLimits& limits, cons
 
 bool is_flag(int8_t v) { return v == 0 || v == 1; }
 
+// CRC32 start value followed by robot_id as the canonical forms begin (uint32 length, bytes).
+uint32_t crc_of_robot_id(const std::string& robot_id) {
+  uint32_t crc = static_cast<uint32_t>(::crc32(0L, Z_NULL, 0));
+  uint8_t id_len[4];
+  const uint32_t n = static_cast<uint32_t>(robot_id.size());
+  for (int i = 0; i < 4; ++i) id_len[i] = static_cast<uint8_t>(n >> (8 * i));
+  crc = crc_update(crc, id_len, 4);
+  return crc_update(crc, reinterpret_cast<const uint8_t*>(robot_id.data()), robot_id.size());
+}
+
 }  // namespace
 
 uint32_t chunk_crc32(const hwr_lcm::map_chunk_t& c) {
-  uint32_t crc = static_cast<uint32_t>(::crc32(0L, Z_NULL, 0));
-  uint8_t id_len[4];
-  const uint32_t n = static_cast<uint32_t>(c.robot_id.size());
-  for (int i = 0; i < 4; ++i) id_len[i] = static_cast<uint8_t>(n >> (8 * i));
-  crc = crc_update(crc, id_len, 4);
-  crc = crc_update(crc, reinterpret_cast<const uint8_t*>(c.robot_id.data()), c.robot_id.size());
+  uint32_t crc = crc_of_robot_id(c.robot_id);
 
   LeWriter w;
   w.i64(c.run_id);
@@ -192,6 +200,33 @@ uint32_t chunk_crc32(const hwr_lcm::map_chunk_t& c) {
 void seal_chunk(hwr_lcm::map_chunk_t* chunk) {
   chunk->payload_size = static_cast<int32_t>(chunk->payload.size());
   chunk->crc32 = static_cast<int64_t>(chunk_crc32(*chunk));
+}
+
+uint32_t ack_crc32(const hwr_lcm::chunk_ack_t& a) {
+  uint32_t crc = crc_of_robot_id(a.robot_id);
+  LeWriter w;
+  w.i64(a.run_id);
+  w.i64(a.cumulative_seq);
+  w.i32(a.num_selective);
+  // selective.size() values, fed through the fixed buffer in pieces (no allocation).
+  for (int64_t v : a.selective) {
+    if (w.room() < 8) {
+      crc = crc_update(crc, w.data(), w.size());
+      w.clear();
+    }
+    w.i64(v);
+  }
+  if (w.room() < 1) {
+    crc = crc_update(crc, w.data(), w.size());
+    w.clear();
+  }
+  w.u8(static_cast<uint8_t>(a.resume_report));
+  return crc_update(crc, w.data(), w.size());
+}
+
+void seal_ack(hwr_lcm::chunk_ack_t* ack) {
+  ack->num_selective = static_cast<int32_t>(ack->selective.size());
+  ack->crc32 = static_cast<int64_t>(ack_crc32(*ack));
 }
 
 core::Status verify_chunk(const hwr_lcm::map_chunk_t& c, const ChunkWireLimits& limits) {
@@ -272,14 +307,25 @@ core::Status verify_chunk(const hwr_lcm::map_chunk_t& c, const ChunkWireLimits& 
 }
 
 core::Status verify_ack(const hwr_lcm::chunk_ack_t& a, const ChunkWireLimits& limits) {
+  if (a.num_selective < 0 || static_cast<size_t>(a.num_selective) != a.selective.size()) {
+    return core::InvalidArgument("chunk_ack_t: num_selective " + std::to_string(a.num_selective) + " but " +
+                                 std::to_string(a.selective.size()) + " selective values");
+  }
+  // The CRC before the ranges, as for chunks: damage in transit is reported as such.
+  if (a.crc32 < 0 || a.crc32 > 0xFFFFFFFFll) {
+    return core::CorruptData("chunk_ack_t: crc32 field " + std::to_string(a.crc32) +
+                             " is not a 32-bit value");
+  }
+  const uint32_t crc = ack_crc32(a);
+  if (crc != static_cast<uint32_t>(a.crc32)) {
+    return core::CorruptData("chunk_ack_t (cumulative_seq " + seq_text(a.cumulative_seq) +
+                             "): CRC32 mismatch (computed " + std::to_string(crc) + ", message says " +
+                             std::to_string(a.crc32) + "): damaged in transit or not sealed by the sender");
+  }
   HWR_RETURN_IF_ERROR(check_robot_id(a.robot_id, limits, "chunk_ack_t"));
   if (a.run_id < 0) return core::OutOfRange("chunk_ack_t: run_id " + seq_text(a.run_id) + " < 0");
   if (a.cumulative_seq < -1) {
     return core::OutOfRange("chunk_ack_t: cumulative_seq " + seq_text(a.cumulative_seq) + " < -1");
-  }
-  if (a.num_selective < 0 || static_cast<size_t>(a.num_selective) != a.selective.size()) {
-    return core::InvalidArgument("chunk_ack_t: num_selective " + std::to_string(a.num_selective) + " but " +
-                                 std::to_string(a.selective.size()) + " selective values");
   }
   if (a.num_selective > limits.max_selective) {
     return core::OutOfRange("chunk_ack_t: " + std::to_string(a.num_selective) +
@@ -353,6 +399,7 @@ core::Status decode_ack_message(const uint8_t* data, size_t size, hwr_lcm::chunk
   }
   HWR_RETURN_IF_ERROR(r.skip(8 * static_cast<size_t>(num_selective), "selective"));
   HWR_RETURN_IF_ERROR(r.skip(1, "resume_report"));
+  HWR_RETURN_IF_ERROR(r.skip(8, "crc32"));
   HWR_RETURN_IF_ERROR(r.check_end());
 
   out->selective.clear();

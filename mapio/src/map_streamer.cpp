@@ -33,7 +33,10 @@ struct PoseSample {
   bool tracking = false;
 };
 
+// Batches and owed completions share one submission order: seq = 0, 1, 2, ... (MapStreamer::Impl::
+// submitted at the time), which the streamer thread follows (consumed is the next seq it takes).
 struct Batch {
+  int64_t seq = 0;
   int32_t segment_id = 0, segment_version = 0;
   double T_world_segment[12] = {};
   bool complete = false;
@@ -41,6 +44,13 @@ struct Batch {
   int n = 0;
   std::vector<ChunkPoint> points;
   std::vector<uint32_t> ids;
+};
+
+// A completing batch submit() refused: the streamer thread sends an empty completing chunk for it.
+struct OwedCompletion {
+  int64_t seq = 0;
+  int32_t segment_id = 0, segment_version = 0;
+  double T_world_segment[12] = {};
 };
 
 }  // namespace
@@ -52,6 +62,7 @@ struct MapStreamer::Impl {
         sender(robot_id, run_id, c.link),
         pool(static_cast<size_t>(c.batch_slots), prototype(c)),
         queue(static_cast<size_t>(c.batch_slots)),
+        owed(static_cast<size_t>(c.batch_slots)),
         poses(64),
         robot_id_(robot_id),
         run_id_(run_id) {}
@@ -68,7 +79,8 @@ struct MapStreamer::Impl {
   ChunkSender sender;
   core::ObjectPool<Batch> pool;
   core::SpscRing<Batch*> queue;
-  core::SpscRing<PoseSample> poses;  // camera task -> streamer thread
+  core::SpscRing<OwedCompletion> owed;  // mapping task -> streamer thread (map_streamer.hpp slot rule)
+  core::SpscRing<PoseSample> poses;     // camera task -> streamer thread
   std::string robot_id_;
   int64_t run_id_;
   hwr_lcm::status_t status_pending;  // under mu
@@ -77,8 +89,9 @@ struct MapStreamer::Impl {
   hwr_lcm::pose_t pose_out;          // streamer thread
   std::thread thread;
   std::atomic<bool> stop{false};
-  std::atomic<int64_t> submitted{0};  // batches handed to the queue
-  std::atomic<int64_t> consumed{0};   // batches fully encoded and offered
+  std::atomic<int64_t> submitted{0};    // batches and owed completions handed over (the next seq)
+  std::atomic<int64_t> consumed{0};     // of those, fully encoded and offered (the next seq to take)
+  bool completion_loss_warned = false;  // mapping task
 
   // Streamer-thread state.
   std::deque<hwr_lcm::map_chunk_t> pending;  // encoded, not yet in the sender's window
@@ -86,6 +99,9 @@ struct MapStreamer::Impl {
   std::vector<uint8_t> payload;
   std::vector<uint8_t> wire;
   hwr_lcm::chunk_ack_t ack;
+  Batch* next_batch = nullptr;  // popped from queue, waiting for its seq
+  OwedCompletion next_owed;     // popped from owed, waiting for its seq when have_owed
+  bool have_owed = false;
 
   mutable std::mutex mu;
   std::condition_variable cv;
@@ -100,14 +116,18 @@ struct MapStreamer::Impl {
 
   // A chunk of the segment's next index from `payload` (n points; n = 0: an empty completing chunk).
   void make_chunk(const Batch& b, int n, bool last_of_complete) {
+    make_chunk(b.segment_id, b.segment_version, b.T_world_segment, n, last_of_complete);
+  }
+  void make_chunk(int32_t segment_id, int32_t segment_version, const double* T_world_segment, int n,
+                  bool last_of_complete) {
     hwr_lcm::map_chunk_t c;
-    c.segment_id = b.segment_id;
-    c.segment_version = b.segment_version;
-    int32_t& next = next_chunk_index[{b.segment_id, b.segment_version}];
+    c.segment_id = segment_id;
+    c.segment_version = segment_version;
+    int32_t& next = next_chunk_index[{segment_id, segment_version}];
     c.chunk_index = next++;
     c.chunk_count = next;
     c.segment_complete = last_of_complete ? 1 : 0;
-    std::copy(b.T_world_segment, b.T_world_segment + 12, c.T_world_segment);
+    std::copy(T_world_segment, T_world_segment + 12, c.T_world_segment);
     c.num_points = n;
     c.has_normals = 0;
     if (n > 0) c.payload = payload;
@@ -162,6 +182,30 @@ struct MapStreamer::Impl {
     }
   }
 
+  // Takes the next item in submission order (a batch or an owed completion) when it has arrived.
+  // Both rings are popped ahead into next_batch / next_owed, and only the one whose seq is due is
+  // used, so an owed completion never overtakes a batch submitted before it, nor the reverse.
+  void take_next_item() {
+    if (next_batch == nullptr) (void)queue.try_pop(next_batch);
+    if (!have_owed) have_owed = owed.try_pop(next_owed);
+    const int64_t due = consumed.load();
+    if (have_owed && next_owed.seq == due) {
+      // The refused batch's points are lost; its segment still ends with chunk_count final.
+      make_chunk(next_owed.segment_id, next_owed.segment_version, next_owed.T_world_segment, 0, true);
+      have_owed = false;
+      consumed.fetch_add(1);
+    } else if (next_batch != nullptr && next_batch->seq == due) {
+      encode_batch(*next_batch);
+      pool.release(next_batch);
+      next_batch = nullptr;
+      consumed.fetch_add(1);
+    }
+  }
+
+  bool items_waiting() const {
+    return next_batch != nullptr || have_owed || queue.size() > 0 || owed.size() > 0;
+  }
+
   void run() {
     link.subscribe(kChannelMapAck, [this](const uint8_t* d, size_t n) {
       if (!decode_ack_message(d, n, &ack).ok() || !verify_ack(ack, ChunkWireLimits{}).ok()) return;
@@ -171,12 +215,7 @@ struct MapStreamer::Impl {
     });
     for (;;) {
       // Take the next batch only when the previous one's chunks are all in the window.
-      Batch* b = nullptr;
-      if (pending.empty() && queue.try_pop(b)) {
-        encode_batch(*b);
-        pool.release(b);
-        consumed.fetch_add(1);
-      }
+      if (pending.empty()) take_next_item();
       const int64_t now = steady_ns();
       while (!pending.empty() && sender.can_accept(pending.front().payload.size())) {
         if (!sender.offer(std::move(pending.front()), now)) break;
@@ -197,7 +236,7 @@ struct MapStreamer::Impl {
       if (stop.load()) return;
       // Wait for acks; return early when there is encoding to do.
       const bool work =
-          !pending.empty() ? sender.can_accept(pending.front().payload.size()) : queue.size() > 0;
+          !pending.empty() ? sender.can_accept(pending.front().payload.size()) : items_waiting();
       auto r = link.handle(work ? 0 : 5);
       if (!r.ok()) {
         std::lock_guard<std::mutex> lock(mu);
@@ -250,13 +289,14 @@ MapStreamer::~MapStreamer() {
 core::Expected<std::unique_ptr<MapStreamer>> MapStreamer::start(const std::string& url,
                                                                 const std::string& robot_id, int64_t run_id,
                                                                 const MapStreamerConfig& config) {
-  if (config.batch_slots < 1 || config.max_batch_points < 1 || config.max_points_per_chunk < 1 ||
+  if (config.batch_slots < 2 || config.max_batch_points < 1 || config.max_points_per_chunk < 1 ||
       config.max_chunk_bytes < 1024 || config.max_chunk_bytes > config.link.window_bytes ||
       config.link.window_chunks < 1 || !(config.link.initial_rto_ns > 0) ||
       config.link.initial_rto_ns > config.link.max_rto_ns || config.link.rto_backoff < 1.0 ||
       config.link.max_sends_per_service < 1) {
     return core::InvalidArgument(
-        "map streamer: needs batch_slots >= 1, max_batch_points >= 1, max_points_per_chunk >= 1, "
+        "map streamer: needs batch_slots >= 2 (one is kept for segment completions), max_batch_points >= 1, "
+        "max_points_per_chunk >= 1, "
         "1024 <= max_chunk_bytes <= link.window_bytes, link.window_chunks >= 1, "
         "0 < link.initial_rto_ns <= link.max_rto_ns, link.rto_backoff >= 1, link.max_sends_per_service >= 1");
   }
@@ -270,46 +310,90 @@ core::Expected<std::unique_ptr<MapStreamer>> MapStreamer::start(const std::strin
   return s;
 }
 
+namespace {
+
+void copy_pose(const Eigen::Isometry3d& T, double* out) {
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 4; ++c) out[4 * r + c] = T.matrix()(r, c);
+}
+
+}  // namespace
+
 bool MapStreamer::submit(int32_t segment_id, int32_t segment_version,
                          const Eigen::Isometry3d& T_world_segment, const ChunkPoint* points_segment,
                          const uint32_t* ids, int n, bool segment_complete, double wait_s) {
   Impl& m = *impl_;
+  // Slot rule (map_streamer.hpp): the last free slot is for a completing batch. Only this thread
+  // acquires and the streamer thread only releases, so a count seen here can only grow before the
+  // acquire below.
+  auto take_slot = [&m, segment_complete]() -> Batch* {
+    if (!segment_complete && m.pool.available() < 2) return nullptr;
+    return m.pool.acquire();
+  };
   Batch* b = nullptr;
   if (n >= 0 && n <= m.config.max_batch_points) {
     const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(wait_s);
-    while ((b = m.pool.acquire()) == nullptr && std::chrono::steady_clock::now() < deadline)
+    while ((b = take_slot()) == nullptr && std::chrono::steady_clock::now() < deadline)
       std::this_thread::sleep_for(std::chrono::milliseconds(1));
   }
-  if (b == nullptr) {
-    std::lock_guard<std::mutex> lock(m.mu);
-    ++m.stats.batches_refused;
-    return false;
-  }
-  b->segment_id = segment_id;
-  b->segment_version = segment_version;
-  for (int r = 0; r < 3; ++r)
-    for (int c = 0; c < 4; ++c) b->T_world_segment[4 * r + c] = T_world_segment.matrix()(r, c);
-  b->complete = segment_complete;
-  b->has_ids = ids != nullptr;
-  b->n = n;
-  std::copy(points_segment, points_segment + n, b->points.begin());
-  if (ids != nullptr) std::copy(ids, ids + n, b->ids.begin());
-  {
-    // Before the batch is visible: a flush() from now on waits for the thread's next full pass.
-    std::lock_guard<std::mutex> lock(m.mu);
-    m.drained = false;
-  }
-  m.submitted.fetch_add(1);
-  if (!m.queue.try_push(b)) {  // cannot happen: as many queue places as batches
+  if (b != nullptr) {
+    b->segment_id = segment_id;
+    b->segment_version = segment_version;
+    copy_pose(T_world_segment, b->T_world_segment);
+    b->complete = segment_complete;
+    b->has_ids = ids != nullptr;
+    b->n = n;
+    std::copy(points_segment, points_segment + n, b->points.begin());
+    if (ids != nullptr) std::copy(ids, ids + n, b->ids.begin());
+    {
+      // Before the batch is visible: a flush() from now on waits for the thread's next full pass.
+      std::lock_guard<std::mutex> lock(m.mu);
+      m.drained = false;
+    }
+    b->seq = m.submitted.fetch_add(1);
+    if (m.queue.try_push(b)) {
+      std::lock_guard<std::mutex> lock(m.mu);
+      ++m.stats.batches;
+      return true;
+    }
+    // Cannot happen (as many queue places as batches); the seq is given back, no gap is left.
     m.submitted.fetch_sub(1);
     m.pool.release(b);
+  }
+  // Refused. A completing batch is owed: its segment still gets an empty completing chunk.
+  bool owed = false;
+  if (segment_complete) {
+    OwedCompletion o;
+    o.segment_id = segment_id;
+    o.segment_version = segment_version;
+    copy_pose(T_world_segment, o.T_world_segment);
+    {
+      std::lock_guard<std::mutex> lock(m.mu);
+      m.drained = false;
+    }
+    o.seq = m.submitted.fetch_add(1);
+    owed = m.owed.try_push(o);
+    if (!owed) m.submitted.fetch_sub(1);
+  }
+  bool warn = false;
+  {
     std::lock_guard<std::mutex> lock(m.mu);
     ++m.stats.batches_refused;
-    return false;
+    if (owed) ++m.stats.completions_owed;
+    if (segment_complete && !owed) {
+      ++m.stats.completions_lost;
+      warn = !m.completion_loss_warned;
+      m.completion_loss_warned = true;
+    }
   }
-  std::lock_guard<std::mutex> lock(m.mu);
-  ++m.stats.batches;
-  return true;
+  if (warn) {
+    HWR_LOG_WARN("mapio",
+                 "map streamer: segment %d v%d: its completing batch was refused and %d owed completions "
+                 "are already waiting; the ground station will not see this segment complete "
+                 "(stats.completions_lost counts every such segment; warned once)",
+                 segment_id, segment_version, m.config.batch_slots);
+  }
+  return false;
 }
 
 bool MapStreamer::flush(double timeout_s) {
@@ -343,7 +427,9 @@ void MapStreamer::post_status(const hwr_lcm::status_t& status) {
 
 MapStreamerStats MapStreamer::stats() const {
   std::lock_guard<std::mutex> lock(impl_->mu);
-  return impl_->stats;
+  MapStreamerStats s = impl_->stats;
+  s.batch_slots_free = static_cast<int>(impl_->pool.available());
+  return s;
 }
 
 }  // namespace hwr::mapio

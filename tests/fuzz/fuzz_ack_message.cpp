@@ -1,7 +1,8 @@
 // libFuzzer target: arbitrary bytes as a received HWR_MAP_ACK message, through the robot's handler
-// (decode_ack_message, verify_ack, ChunkSender::on_ack with a window of chunks in flight for the
-// ack's own robot and run) and the ground's AckTracker (record / restore / make_ack of the values
-// it carries). A crash, a sanitizer report or a broken invariant is a finding.
+// (decode_ack_message, verify_ack with the ack's CRC32, ChunkSender::on_ack with a window of chunks
+// in flight for the ack's own robot and run) and the ground's AckTracker (record / restore /
+// make_ack of the values it carries; make_ack seals). Seeds: make_ack_seeds.cpp (sealed acks). A
+// crash, a sanitizer report or a broken invariant is a finding.
 
 #include <cstddef>
 #include <cstdint>
@@ -38,6 +39,7 @@ hwr_lcm::map_chunk_t small_chunk(int i) {
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   static hwr_lcm::chunk_ack_t ack;
   static hwr_lcm::chunk_ack_t made;
+  static hwr_lcm::chunk_ack_t resealed;
   static std::vector<uint8_t> again;
   const hwr::mapio::ChunkWireLimits limits;
   const hwr::core::Status decoded = hwr::mapio::decode_ack_message(data, size, &ack, limits);
@@ -49,6 +51,13 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   if (again.size() != size || std::memcmp(again.data(), data, size) != 0) std::abort();
   if (ack.selective.size() > static_cast<size_t>(limits.max_selective)) std::abort();
   const bool valid = hwr::mapio::verify_ack(ack, limits).ok();
+  // An ack that verifies carries its own CRC; sealing it again changes nothing.
+  if (valid && static_cast<int64_t>(hwr::mapio::ack_crc32(ack)) != ack.crc32) std::abort();
+  if (valid) {
+    resealed = ack;
+    hwr::mapio::seal_ack(&resealed);
+    if (resealed.crc32 != ack.crc32 || resealed.num_selective != ack.num_selective) std::abort();
+  }
 
   // Robot side: the handler must hold its accounting whatever the ack says (it is given even
   // unverified acks: on_ack checks on its own what it relies on).

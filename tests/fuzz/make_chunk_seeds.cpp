@@ -51,11 +51,12 @@ int main(int argc, char** argv) {
       normals[3 * static_cast<size_t>(i) + 1] = p.y_m / len;
       normals[3 * static_cast<size_t>(i) + 2] = p.z_m / len;
     }
-    for (int variant = 0; variant < 8; ++variant) {
+    for (int variant = 0; variant < 16; ++variant) {
       hwr::mapio::ChunkCodecConfig cfg;
       cfg.preserve_order = (variant & 1) != 0;
       cfg.with_point_ids = (variant & 2) != 0;
       const bool with_normals = (variant & 4) != 0;
+      cfg.color_bits = (variant & 8) != 0 ? 5 : 8;  // kd-tree + 5 bits: the split layout
       cfg.speed = variant % 3 == 0 ? 10 : 5;
       std::vector<uint8_t> bytes;
       auto info = hwr::mapio::encode_chunk(points.data(), n, cfg.with_point_ids ? ids.data() : nullptr,

@@ -137,6 +137,30 @@ TEST(QuantizationBits, GivenEdgeCasesThenTheSmallestSufficientQOrMinusOne) {
   }
 }
 
+// The three payload shapes encode_chunk writes (chunk_codec.hpp): single kd-tree, split kd-tree
+// (color_bits < 8), single sequential.
+struct Layout {
+  const char* name;
+  bool preserve_order;
+  int color_bits;
+};
+constexpr Layout kLayouts[] = {{"kd-tree", false, 8}, {"split kd-tree", false, 5}, {"sequential", true, 8}};
+
+ChunkCodecConfig config_for(const Layout& layout) {
+  ChunkCodecConfig cfg;
+  cfg.preserve_order = layout.preserve_order;
+  cfg.color_bits = layout.color_bits;
+  return cfg;
+}
+
+// The 8-bit value color_bits keeps of a channel (chunk_codec.hpp: nearest of 2^bits levels).
+uint8_t reduced(uint8_t v, int bits) {
+  if (bits == 8) return v;
+  const int levels = (1 << bits) - 1;
+  const int level = (v * levels + 127) / 255;
+  return static_cast<uint8_t>((level * 255 + levels / 2) / levels);
+}
+
 TEST(ChunkCodec, GivenRandomCloudsThenEveryAxisStaysWithinTheBoundAndColoursFlagsIdsAreExact) {
   struct Case {
     int n;
@@ -290,6 +314,137 @@ TEST(ChunkCodec, GivenNormalsThenTheyTravelWithTheirPoints) {
   }
 }
 
+// Split layout (kd-tree, color_bits < 8): positions and the other attributes travel in two Draco
+// clouds and are joined again by the decoded order. Every point keeps its id, flags, normal and
+// its colour reduced exactly as documented, including points that share quantized coordinates.
+TEST(ChunkCodecSplit, GivenFewerColourBitsOnAKdTreeChunkThenEveryPointKeepsItsOwnAttributes) {
+  struct Case {
+    int n;
+    double extent_m;
+    int color_bits;
+    bool normals;
+  };
+  const Case cases[] = {{1, 0.1, 5, false},   {7, 50.0, 5, true},    {1000, 3.0, 1, false},
+                        {1000, 3.0, 7, true}, {20000, 8.0, 5, true}, {20000, 0.004, 5, false}};
+  for (const Case& tc : cases) {
+    SCOPED_TRACE("n=" + std::to_string(tc.n) + " extent=" + std::to_string(tc.extent_m) +
+                 " bits=" + std::to_string(tc.color_bits));
+    // extent 4 mm at 1 mm: q = 2, so thousands of points share each quantized cell.
+    const Cloud c = random_cloud(tc.n, tc.extent_m, 0.0, 31u + static_cast<uint32_t>(tc.n));
+    std::vector<float> normals(3 * c.points.size());
+    for (size_t i = 0; i < c.points.size(); ++i) {
+      const double a = 0.001 * static_cast<double>(i), b = 0.0007 * static_cast<double>(i);
+      normals[3 * i] = static_cast<float>(std::cos(a) * std::cos(b));
+      normals[3 * i + 1] = static_cast<float>(std::sin(a) * std::cos(b));
+      normals[3 * i + 2] = static_cast<float>(std::sin(b));
+    }
+    ChunkCodecConfig cfg;
+    cfg.color_bits = tc.color_bits;
+    cfg.with_point_ids = true;
+    cfg.max_payload_bytes = size_t{8} << 20;
+    std::vector<uint8_t> bytes;
+    auto info =
+        encode_chunk(c.points.data(), tc.n, c.ids.data(), tc.normals ? normals.data() : nullptr, cfg, &bytes);
+    ASSERT_TRUE(info.ok()) << info.status().to_string();
+    EXPECT_TRUE(info->split);
+    // The first cloud is positions alone, the second (after it) sequential with colour levels.
+    auto first = parse_draco_point_cloud_prefix(bytes.data(), bytes.size());
+    ASSERT_TRUE(first.ok()) << first.status().to_string();
+    EXPECT_EQ(first->num_attributes, 1);
+    EXPECT_EQ(first->header.method, DracoPointCloudMethod::kKdTree);
+    DecodedChunk out;
+    ChunkDecodeLimits limits;
+    limits.max_payload_bytes = cfg.max_payload_bytes;
+    const core::Status st = decode_chunk(bytes.data(), bytes.size(), tc.n, limits, &out);
+    ASSERT_TRUE(st.ok()) << st.to_string();
+    ASSERT_EQ(out.ids.size(), c.ids.size());
+    ASSERT_EQ(out.normals_xyz.size(), tc.normals ? normals.size() : 0u);
+    std::unordered_map<uint32_t, size_t> index_of_id;
+    for (size_t i = 0; i < c.ids.size(); ++i) index_of_id[c.ids[i]] = i;
+    std::vector<int> hits(c.points.size(), 0);
+    for (size_t k = 0; k < out.points.size(); ++k) {
+      const auto it = index_of_id.find(out.ids[k]);
+      ASSERT_NE(it, index_of_id.end()) << "decoded id " << out.ids[k] << " was never sent";
+      const size_t i = it->second;
+      ++hits[i];
+      const ChunkPoint& a = c.points[i];
+      const ChunkPoint& b = out.points[k];
+      ASSERT_LE(std::fabs(double{a.x_m} - b.x_m), info->max_position_error_m) << "point " << i;
+      ASSERT_LE(std::fabs(double{a.y_m} - b.y_m), info->max_position_error_m) << "point " << i;
+      ASSERT_LE(std::fabs(double{a.z_m} - b.z_m), info->max_position_error_m) << "point " << i;
+      ASSERT_EQ(b.r, reduced(a.r, tc.color_bits)) << "point " << i;
+      ASSERT_EQ(b.g, reduced(a.g, tc.color_bits)) << "point " << i;
+      ASSERT_EQ(b.b, reduced(a.b, tc.color_bits)) << "point " << i;
+      ASSERT_EQ(b.flags, a.flags) << "point " << i;
+      if (tc.normals) {
+        double dot = 0;
+        for (size_t d = 0; d < 3; ++d) dot += double{normals[3 * i + d]} * out.normals_xyz[3 * k + d];
+        ASSERT_GT(dot, std::cos(1.0 * M_PI / 180.0)) << "point " << i << ": normal of another point?";
+      }
+    }
+    EXPECT_EQ(std::count(hits.begin(), hits.end(), 1), static_cast<std::ptrdiff_t>(hits.size()));
+  }
+}
+
+// What the split buys: with coarser colour a kd-tree chunk shrinks by ~1 byte/point, where the single
+// layout (colour as kd-tree dimensions) gains almost nothing. The room cloud below, 5-bit colour.
+Cloud room_cloud();
+TEST(ChunkCodecSplit, GivenCoarserColourThenTheSplitLayoutIsSmallerThanOneKdTreeCloud) {
+  const Cloud c = room_cloud();
+  ChunkCodecConfig lossless;
+  const size_t lossless_bytes = encode_or_die(c, lossless).size();
+  ChunkCodecConfig five;
+  five.color_bits = 5;
+  EncodedChunkInfo info;
+  const size_t split_bytes = encode_or_die(c, five, &info).size();
+  EXPECT_TRUE(info.split);
+  const double per_point = 1.0 / static_cast<double>(c.points.size());
+  std::printf("[ split ] room cloud: lossless kd-tree %.2f bytes/point, 5-bit split %.2f bytes/point\n",
+              static_cast<double>(lossless_bytes) * per_point, static_cast<double>(split_bytes) * per_point);
+  EXPECT_LT(static_cast<double>(split_bytes), 0.85 * static_cast<double>(lossless_bytes));
+}
+
+// Bytes after the Draco data, a split chunk cut after its positions, and an attribute cloud of
+// another size are each a named error.
+TEST(ChunkCodecSplit, GivenTrailingBytesAMissingOrForeignAttributeCloudThenCorruptData) {
+  const Cloud c = random_cloud(300, 1.0, 0.0, 41);
+  DecodedChunk out;
+  for (const Layout& layout : kLayouts) {
+    SCOPED_TRACE(layout.name);
+    std::vector<uint8_t> bytes = encode_or_die(c, config_for(layout));
+    bytes.push_back(0);
+    const core::Status st = decode_chunk(bytes.data(), bytes.size(), 300, ChunkDecodeLimits{}, &out);
+    EXPECT_EQ(st.code(), core::ErrorCode::kCorruptData);
+    EXPECT_NE(st.message().find("1 bytes follow"), std::string::npos) << st.message();
+  }
+  ChunkCodecConfig five;
+  five.color_bits = 5;
+  // The position cloud alone: the split payload cut where its second "DRACO" starts.
+  const std::vector<uint8_t> split = encode_or_die(c, five);
+  const std::string text(split.begin(), split.end());
+  const size_t second = text.find("DRACO", 5);
+  ASSERT_NE(second, std::string::npos);
+  const std::vector<uint8_t> positions(split.begin(), split.begin() + static_cast<std::ptrdiff_t>(second));
+  core::Status st = decode_chunk(positions.data(), positions.size(), 300, ChunkDecodeLimits{}, &out);
+  EXPECT_EQ(st.code(), core::ErrorCode::kCorruptData);
+  EXPECT_NE(st.message().find("no attribute cloud"), std::string::npos) << st.message();
+  // The attribute cloud of a 299-point chunk behind 300 positions.
+  const Cloud fewer = random_cloud(299, 1.0, 0.0, 42);
+  const std::vector<uint8_t> other = encode_or_die(fewer, five);
+  const size_t other_second = std::string(other.begin(), other.end()).find("DRACO", 5);
+  ASSERT_NE(other_second, std::string::npos);
+  std::vector<uint8_t> foreign = positions;
+  foreign.insert(foreign.end(), other.begin() + static_cast<std::ptrdiff_t>(other_second), other.end());
+  st = decode_chunk(foreign.data(), foreign.size(), 300, ChunkDecodeLimits{}, &out);
+  EXPECT_EQ(st.code(), core::ErrorCode::kCorruptData);
+  EXPECT_NE(st.message().find("attribute cloud claims 299 points"), std::string::npos) << st.message();
+  // Two split position clouds back to back: the second one carries positions.
+  std::vector<uint8_t> doubled = positions;
+  doubled.insert(doubled.end(), positions.begin(), positions.end());
+  st = decode_chunk(doubled.data(), doubled.size(), 300, ChunkDecodeLimits{}, &out);
+  EXPECT_EQ(st.code(), core::ErrorCode::kCorruptData) << st.to_string();
+}
+
 // A 5 m x 4 m floor and two 5 m x 2 m walls sampled every 2 cm (100 000 points) with 1 mm of depth
 // noise and camera-like colour: a smooth shading gradient plus +-3 levels of noise. Shuffled: a chunk
 // drawn from a voxel map has no scan order for the sequential coder's delta prediction to exploit.
@@ -412,9 +567,9 @@ TEST(ChunkCodecReject, GivenEmptyTruncatedOrGarbageBuffersThenAClearError) {
             core::ErrorCode::kInvalidArgument);
 
   const Cloud c = random_cloud(500, 2.0, 0.0, 8);
-  for (bool preserve_order : {false, true}) {
-    ChunkCodecConfig cfg;
-    cfg.preserve_order = preserve_order;
+  for (const Layout& layout : kLayouts) {
+    SCOPED_TRACE(layout.name);
+    ChunkCodecConfig cfg = config_for(layout);
     cfg.with_point_ids = true;
     const std::vector<uint8_t> bytes = encode_or_die(c, cfg);
     // Every proper prefix.
@@ -448,9 +603,8 @@ TEST(ChunkCodecReject, GivenEmptyTruncatedOrGarbageBuffersThenAClearError) {
 
 TEST(ChunkCodecReject, GivenFlippedBytesAtEveryOffsetThenErrorOrAValidDecode) {
   const Cloud c = random_cloud(200, 1.5, 0.0, 12);
-  for (bool preserve_order : {false, true}) {
-    ChunkCodecConfig cfg;
-    cfg.preserve_order = preserve_order;
+  for (const Layout& layout : kLayouts) {
+    ChunkCodecConfig cfg = config_for(layout);
     cfg.with_point_ids = true;
     const std::vector<uint8_t> bytes = encode_or_die(c, cfg);
     int rejected = 0;
@@ -470,8 +624,7 @@ TEST(ChunkCodecReject, GivenFlippedBytesAtEveryOffsetThenErrorOrAValidDecode) {
     // Draco carries no checksum: many payload flips decode to a different, valid cloud. The link's
     // CRC32 is what catches those; the codec only guarantees no crash and a well-formed result.
     std::printf("[ flips ] %s: %zu offsets x 2 masks, %d rejected, %d decoded to a valid cloud\n",
-                preserve_order ? "sequential" : "kd-tree", bytes.size(), rejected,
-                static_cast<int>(2 * bytes.size()) - rejected);
+                layout.name, bytes.size(), rejected, static_cast<int>(2 * bytes.size()) - rejected);
   }
 }
 
@@ -482,9 +635,8 @@ std::vector<uint8_t> with_point_count(std::vector<uint8_t> bytes, int32_t n) {
 
 TEST(ChunkCodecReject, GivenAHeaderClaimingABillionPointsThenRejectedWithoutAllocating) {
   const Cloud c = random_cloud(1000, 2.0, 0.0, 13);
-  for (bool preserve_order : {false, true}) {
-    ChunkCodecConfig cfg;
-    cfg.preserve_order = preserve_order;
+  for (const Layout& layout : kLayouts) {
+    const ChunkCodecConfig cfg = config_for(layout);
     const std::vector<uint8_t> forged = with_point_count(encode_or_die(c, cfg), 1000000000);
     DecodedChunk out;
     out.points.reserve(1000);  // the output's own storage is not what we measure
@@ -697,6 +849,7 @@ std::string find_tool(const char* name) {
   return {};
 }
 
+// Stock draco_decoder reads every layout: all points, with colour in the single layouts.
 TEST(ChunkCodecInterop, GivenAChunkOnDiskThenDracoDecoderWritesAPlyWithEveryPoint) {
   const std::string tool = find_tool("draco_decoder");
   if (tool.empty())
@@ -705,9 +858,9 @@ TEST(ChunkCodecInterop, GivenAChunkOnDiskThenDracoDecoderWritesAPlyWithEveryPoin
   const char* dir = ::mkdtemp(dir_template);
   ASSERT_NE(dir, nullptr);
   const Cloud c = random_cloud(1234, 5.0, 0.0, 19);
-  for (bool preserve_order : {false, true}) {
-    ChunkCodecConfig cfg;
-    cfg.preserve_order = preserve_order;
+  for (const Layout& layout : kLayouts) {
+    SCOPED_TRACE(layout.name);
+    ChunkCodecConfig cfg = config_for(layout);
     cfg.with_point_ids = true;
     const std::vector<uint8_t> bytes = encode_or_die(c, cfg);
     const std::string drc = std::string(dir) + "/chunk.drc";
@@ -728,8 +881,9 @@ TEST(ChunkCodecInterop, GivenAChunkOnDiskThenDracoDecoderWritesAPlyWithEveryPoin
       if (line.find("property uchar red") != std::string::npos) has_red = true;
     }
     EXPECT_EQ(line, "end_header");
-    EXPECT_EQ(vertices, 1234) << "preserve_order=" << preserve_order;
-    EXPECT_TRUE(has_red) << "the PLY carries the colour";
+    EXPECT_EQ(vertices, 1234);
+    // The split layout's first cloud is the positions alone; stock tools stop there.
+    EXPECT_EQ(has_red, layout.color_bits == 8) << "the single layouts' PLY carries the colour";
     std::remove(drc.c_str());
     std::remove(ply.c_str());
   }

@@ -183,8 +183,8 @@ hwr_lcm::chunk_ack_t ack_of(const ChunkSender& s, int64_t cumulative, std::vecto
   a.run_id = s.run_id();
   a.cumulative_seq = cumulative;
   a.selective = std::move(selective);
-  a.num_selective = static_cast<int32_t>(a.selective.size());
   a.resume_report = resume ? 1 : 0;
+  seal_ack(&a);
   return a;
 }
 
@@ -402,6 +402,7 @@ struct Outcome {
   int link_seq_mismatch = 0;  // the chunk for index i did not carry link_seq i
   int missing = 0;            // chunks 0..n-1 absent at the end
   int rejected = 0;           // undecodable or failing verify_chunk (corruption)
+  int acks_rejected = 0;      // robot side: undecodable or failing verify_ack (corruption)
   int duplicates_ignored = 0;
   int beyond_window = 0;
   int window_violations = 0;  // in-flight chunks or bytes above the configured window
@@ -535,6 +536,8 @@ Outcome run_link(const Scenario& sc) {
     for (const auto& m : msgs) {
       if (decode_ack_message(m.data(), m.size(), &ack).ok() && verify_ack(ack, ChunkWireLimits{}).ok()) {
         sender.on_ack(ack, t);
+      } else {
+        ++o.acks_rejected;
       }
     }
     while (next < sc.num_chunks) {
@@ -576,7 +579,7 @@ void report(const char* name, const Outcome& o) {
       "[link %s] sim %.2f s: stored %d, sends %lld, resends %lld, acks %lld, resume %lld, refusals %lld, "
       "max in flight %d chunks / %.1f MiB, max rto %.0f ms | up: sent %lld lost %lld cut %lld dup %lld "
       "reord %lld corrupt %lld | down: sent %lld lost %lld cut %lld dup %lld | ground: dup ignored %d, "
-      "rejected %d, beyond window %d\n",
+      "rejected %d, beyond window %d | robot: acks rejected %d\n",
       name, static_cast<double>(o.end_ns) / kS, o.stored, static_cast<long long>(o.sender.sends),
       static_cast<long long>(o.sender.resends), static_cast<long long>(o.sender.acks),
       static_cast<long long>(o.sender.resume_reports), static_cast<long long>(o.sender.window_full_refusals),
@@ -586,7 +589,8 @@ void report(const char* name, const Outcome& o) {
       static_cast<long long>(o.up.duplicated), static_cast<long long>(o.up.reordered),
       static_cast<long long>(o.up.corrupted), static_cast<long long>(o.down.sent),
       static_cast<long long>(o.down.lost), static_cast<long long>(o.down.cut),
-      static_cast<long long>(o.down.duplicated), o.duplicates_ignored, o.rejected, o.beyond_window);
+      static_cast<long long>(o.down.duplicated), o.duplicates_ignored, o.rejected, o.beyond_window,
+      o.acks_rejected);
   std::fflush(stdout);
 }
 
@@ -714,7 +718,8 @@ TEST(ChunkLink, AllFaultsCombined) {
     f->cut_begin_ns = 1 * kS;
     f->cut_end_ns = 6 * kS;
   }
-  sc.up.corrupt = 0.01;  // acks carry no CRC (chunk_ack_t.lcm): corruption only on chunks
+  sc.up.corrupt = 0.01;    // chunks
+  sc.down.corrupt = 0.01;  // acks: a flipped bit that still decodes must fail the ack's CRC
   sc.restart = true;
   sc.kill_ns = 6500 * kMs;
   sc.restart_ns = 7000 * kMs;
@@ -725,6 +730,8 @@ TEST(ChunkLink, AllFaultsCombined) {
   EXPECT_GT(o.stored_at_cut, 0);
   EXPECT_LT(o.stored_at_kill, sc.num_chunks);
   EXPECT_GT(o.rejected, 0);  // corrupted copies were caught by the CRC
+  EXPECT_GT(o.down.corrupted, 0);
+  EXPECT_GT(o.acks_rejected, 0);  // corrupted acks were refused, and nothing went missing for it
   EXPECT_EQ(o.sender.resume_reports, 1);
 }
 

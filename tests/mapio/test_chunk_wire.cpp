@@ -1,6 +1,6 @@
-// Wire rules of map chunks (mapio/chunk_wire.hpp): the CRC32 against an independent bitwise
-// implementation of the documented canonical form, verify_chunk's rejections, and LCM decoding of
-// truncated, garbage and hostile-length buffers.
+// Wire rules of map chunks and acks (mapio/chunk_wire.hpp): the CRC32s against an independent
+// bitwise implementation of the documented canonical forms, verify_chunk's and verify_ack's
+// rejections, and LCM decoding of truncated, garbage and hostile-length buffers.
 
 #include <gtest/gtest.h>
 
@@ -425,9 +425,120 @@ hwr_lcm::chunk_ack_t make_ack(std::vector<int64_t> selective) {
   a.run_id = 77;
   a.cumulative_seq = 10;
   a.selective = std::move(selective);
-  a.num_selective = static_cast<int32_t>(a.selective.size());
   a.resume_report = 0;
+  seal_ack(&a);
   return a;
+}
+
+// The ack after a field was changed on purpose: sealed again, so verify_ack judges the field.
+hwr_lcm::chunk_ack_t resealed(hwr_lcm::chunk_ack_t a) {
+  seal_ack(&a);
+  return a;
+}
+
+std::vector<uint8_t> canonical_bytes(const hwr_lcm::chunk_ack_t& a) {
+  std::vector<uint8_t> b;
+  put_le<uint32_t>(&b, static_cast<uint32_t>(a.robot_id.size()));
+  b.insert(b.end(), a.robot_id.begin(), a.robot_id.end());
+  put_le(&b, a.run_id);
+  put_le(&b, a.cumulative_seq);
+  put_le(&b, a.num_selective);
+  for (int64_t v : a.selective) put_le(&b, v);
+  put_le(&b, a.resume_report);
+  return b;
+}
+
+TEST(AckCrc, HandWrittenCanonicalBytesOfASmallAck) {
+  hwr_lcm::chunk_ack_t a;
+  a.t_ns = 999;  // not covered
+  a.robot_id = "r1";
+  a.run_id = 0x0102030405060708;
+  a.cumulative_seq = -1;
+  a.selective = {0x1122};
+  a.resume_report = 1;
+  seal_ack(&a);
+  EXPECT_EQ(a.num_selective, 1);
+  // chunk_wire.hpp's canonical form, written out byte by byte (little-endian).
+  const std::vector<uint8_t> bytes = {
+      0x02, 0x00, 0x00, 0x00, 'r',  '1',               // robot_id
+      0x08, 0x07, 0x06, 0x05, 0x04, 0x03, 0x02, 0x01,  // run_id
+      0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF,  // cumulative_seq -1
+      0x01, 0x00, 0x00, 0x00,                          // num_selective
+      0x22, 0x11, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00,  // selective[0]
+      0x01,                                            // resume_report
+  };
+  EXPECT_EQ(canonical_bytes(a), bytes);  // the test's own writer agrees with the hand-written form
+  EXPECT_EQ(ack_crc32(a), reference_crc32(bytes));
+  EXPECT_EQ(a.crc32, static_cast<int64_t>(reference_crc32(bytes)));
+  // t_ns is outside the CRC: a restamped ack still verifies.
+  a.t_ns = 12345;
+  EXPECT_TRUE(verify_ack(a, ChunkWireLimits{}).ok());
+}
+
+TEST(AckCrc, MatchesIndependentCanonicalFormAcrossSizes) {
+  // Sizes around the 160-byte buffer the implementation feeds selective values through.
+  for (size_t n : {size_t{0}, size_t{1}, size_t{17}, size_t{18}, size_t{19}, size_t{40}, size_t{4096}}) {
+    std::vector<int64_t> sel(n);
+    for (size_t i = 0; i < n; ++i) sel[i] = 11 + 3 * static_cast<int64_t>(i);
+    const auto a = make_ack(sel);
+    EXPECT_EQ(ack_crc32(a), reference_crc32(canonical_bytes(a))) << n;
+    EXPECT_TRUE(verify_ack(a, ChunkWireLimits{}).ok()) << n;
+  }
+}
+
+TEST(AckCrc, DamageIsCorruptData) {
+  const auto good = make_ack({12, 13, 20});
+  ASSERT_TRUE(verify_ack(good, ChunkWireLimits{}).ok());
+  auto a = good;
+  a.selective[1] = 14;  // still a valid-looking ack: only the CRC can tell
+  core::Status st = verify_ack(a, ChunkWireLimits{});
+  EXPECT_EQ(st.code(), core::ErrorCode::kCorruptData) << st.to_string();
+  EXPECT_NE(st.message().find("CRC"), std::string::npos) << st.to_string();
+  a = good;
+  a.robot_id[2] ^= 0x01;  // one bit of one robot_id byte: "hwr-0" -> "hws-0"
+  st = verify_ack(a, ChunkWireLimits{});
+  EXPECT_EQ(st.code(), core::ErrorCode::kCorruptData) << st.to_string();
+  EXPECT_NE(st.message().find("CRC"), std::string::npos) << st.to_string();
+  for (auto field : {&hwr_lcm::chunk_ack_t::run_id, &hwr_lcm::chunk_ack_t::cumulative_seq}) {
+    a = good;
+    a.*field += 1;
+    EXPECT_EQ(verify_ack(a, ChunkWireLimits{}).code(), core::ErrorCode::kCorruptData);
+  }
+  a = good;
+  a.resume_report = 1;
+  EXPECT_EQ(verify_ack(a, ChunkWireLimits{}).code(), core::ErrorCode::kCorruptData);
+  a = good;
+  a.crc32 ^= 1;
+  EXPECT_EQ(verify_ack(a, ChunkWireLimits{}).code(), core::ErrorCode::kCorruptData);
+  for (int64_t bad : {int64_t{-1}, int64_t{1} << 32}) {
+    a = good;
+    a.crc32 = bad;
+    st = verify_ack(a, ChunkWireLimits{});
+    EXPECT_EQ(st.code(), core::ErrorCode::kCorruptData) << bad;
+    EXPECT_NE(st.message().find("not a 32-bit value"), std::string::npos) << st.to_string();
+  }
+}
+
+TEST(AckCrc, SealedAckRoundTripsThroughLcmAndEveryFlippedBitIsCaught) {
+  const auto a = make_ack({12, 13, 20});
+  std::vector<uint8_t> bytes;
+  ASSERT_TRUE(encode_ack_message(a, &bytes).ok());
+  hwr_lcm::chunk_ack_t d;
+  ASSERT_TRUE(decode_ack_message(bytes.data(), bytes.size(), &d).ok());
+  EXPECT_EQ(d.crc32, a.crc32);
+  EXPECT_TRUE(verify_ack(d, ChunkWireLimits{}).ok());
+  // Every single-bit flip after t_ns (fingerprint 8 + t_ns 8) either fails to decode or to verify.
+  int decoded_but_rejected = 0;
+  for (size_t byte = 16; byte < bytes.size(); ++byte) {
+    for (int bit = 0; bit < 8; ++bit) {
+      auto b = bytes;
+      b[byte] ^= static_cast<uint8_t>(1u << bit);
+      if (!decode_ack_message(b.data(), b.size(), &d).ok()) continue;
+      EXPECT_FALSE(verify_ack(d, ChunkWireLimits{}).ok()) << "byte " << byte << " bit " << bit;
+      ++decoded_but_rejected;
+    }
+  }
+  EXPECT_GT(decoded_but_rejected, 100);  // most flips decode fine: the CRC is what catches them
 }
 
 TEST(AckMessage, RoundTripTruncationAndHostileCount) {
@@ -464,6 +575,7 @@ TEST(AckMessage, RoundTripTruncationAndHostileCount) {
 }
 
 TEST(AckMessage, VerifyRejectsInconsistentAcks) {
+  // Each case is sealed after its change, so the field itself (not the CRC) is what fails.
   ChunkWireLimits limits;
   limits.max_selective = 4;
   EXPECT_TRUE(verify_ack(make_ack({11, 15}), limits).ok());
@@ -472,20 +584,20 @@ TEST(AckMessage, VerifyRejectsInconsistentAcks) {
   a = make_ack({11, 12, 13, 14, 15});
   EXPECT_NE(verify_ack(a, limits).message().find("more than the limit"), std::string::npos);
   a = make_ack({11});
-  a.num_selective = 2;
+  a.num_selective = 2;  // checked before the CRC (which covers selective.size() values)
   EXPECT_EQ(verify_ack(a, limits).code(), core::ErrorCode::kInvalidArgument);
   a = make_ack({});
   a.cumulative_seq = -2;
-  EXPECT_EQ(verify_ack(a, limits).code(), core::ErrorCode::kOutOfRange);
+  EXPECT_EQ(verify_ack(resealed(a), limits).code(), core::ErrorCode::kOutOfRange);
   a = make_ack({});
   a.resume_report = 2;
-  EXPECT_EQ(verify_ack(a, limits).code(), core::ErrorCode::kInvalidArgument);
+  EXPECT_EQ(verify_ack(resealed(a), limits).code(), core::ErrorCode::kInvalidArgument);
   a = make_ack({});
   a.robot_id.clear();
-  EXPECT_EQ(verify_ack(a, limits).code(), core::ErrorCode::kOutOfRange);
+  EXPECT_EQ(verify_ack(resealed(a), limits).code(), core::ErrorCode::kOutOfRange);
   a = make_ack({});
   a.run_id = -1;
-  EXPECT_EQ(verify_ack(a, limits).code(), core::ErrorCode::kOutOfRange);
+  EXPECT_EQ(verify_ack(resealed(a), limits).code(), core::ErrorCode::kOutOfRange);
 }
 
 }  // namespace

@@ -42,7 +42,8 @@ class AckTracker {
   // Records link_seq; true when it was kNew, false otherwise (nothing changes).
   bool record(int64_t link_seq);
   // cumulative_seq, up to max_selective stored seqs above it (ascending), robot_id, run_id,
-  // resume_report; t_ns is left 0 for the caller to stamp.
+  // resume_report, sealed (seal_ack: num_selective and crc32); t_ns is left 0 for the caller to
+  // stamp (it is outside the CRC).
   void make_ack(hwr_lcm::chunk_ack_t* ack, bool resume_report) const;
 
   // Forgets everything, then records link_seqs found on disk (any order, duplicates allowed).

@@ -6,14 +6,22 @@
 // attribute prefix against ChunkDecodeLimits and the layout below before Draco allocates anything
 // (draco_header.hpp), then checks what Draco produced.
 //
-// Bitstream contents (one Draco point cloud, attribute unique ids fixed so a decoder can tell the
-// generic attributes apart):
+// Payload layouts. Attribute unique ids are fixed so a decoder can tell the generic attributes apart:
 //   unique id 0  POSITION  float32 x3, quantized over the bounding box's largest extent
 //   unique id 1  COLOR     uint8 x3   (r, g, b)
 //   unique id 2  GENERIC   uint8 x1   (ChunkPoint::flags; only when a flag is set, else decoded as 0)
 //   unique id 3  GENERIC   uint16 x2  (point id: low, high half; only with ChunkCodecConfig::with_point_ids)
 //   unique id 4  NORMAL    float32 x3 (only when normals are passed; quantized, lossy)
-
+// (a) single: one Draco point cloud holding every attribute: sequential when preserve_order, else
+//     kd-tree with lossless colour (color_bits 8). Stock draco_decoder writes it as a coloured PLY.
+// (b) split: kd-tree chunks with color_bits < 8. Two Draco point clouds back to back: the first holds
+//     the positions alone, kd-tree coded; the second the other attributes, sequentially coded
+//     (difference prediction + entropy coding) in the order the first one decodes to, the colour as
+//     levels 0..2^b - 1 under unique id 4 + b (b = color_bits; 5..11). Draco's kd-tree coder treats
+//     colour as three more tree dimensions and gains nothing from a coarser colour (~2 bytes/point
+//     either way); coded sequentially, 5-bit colour takes ~1.2 bytes/point (hwr-bench transfer, sim
+//     map: 3.51 bytes/point in all against 4.62 lossless). The first cloud is an ordinary Draco file:
+//     stock draco_decoder reads it (positions) and ignores the bytes after it.
 #include <cstddef>
 #include <cstdint>
 #include <vector>
@@ -46,8 +54,9 @@ struct ChunkCodecConfig {
   // re-sent voxel). When false, the ids argument must be null.
   bool with_point_ids = false;
   // Colour precision per channel: 8 is lossless; fewer bits round each channel to the nearest of
-  // 2^color_bits levels over 0..255 (error <= 255 / (2 (2^color_bits - 1)) + 0.5), which the
-  // entropy coder turns into fewer bytes. Decoded colours are ordinary 8-bit values.
+  // 2^color_bits levels over 0..255 (error <= 255 / (2 (2^color_bits - 1)) + 0.5; 4.6 at 5 bits),
+  // and kd-tree chunks then take layout (b). Decoded colours are ordinary 8-bit values. The map
+  // streamer's default is 5 (MapStreamerConfig).
   int color_bits = 8;
   // Quantization of normals (octahedral, lossy) when normals are passed; Draco's default is 8.
   int normal_quantization_bits = 10;
@@ -58,6 +67,7 @@ struct ChunkCodecConfig {
 
 struct EncodedChunkInfo {
   int num_points = 0;
+  bool split = false;  // layout (b) (chunk_codec.hpp)
   int quantization_bits = 0;
   double max_position_error_m = 0.0;  // the guaranteed per-axis bound for this chunk (<= the config's)
   size_t bytes = 0;
@@ -92,6 +102,10 @@ struct DecodedChunk {
 // unspecified.
 core::Status decode_chunk(const uint8_t* data, size_t size, int expected_points,
                           const ChunkDecodeLimits& limits, DecodedChunk* out);
+
+// The 8-bit value a colour channel v decodes to at ChunkCodecConfig::color_bits = bits (1..8): the
+// nearest of 2^bits levels spread over 0..255; v itself at 8.
+uint8_t reduce_color_channel(uint8_t v, int bits);
 
 // The smallest q in [1, 30] with extent_m / (2^q - 1) / 2 <= max_error_m: Draco quantizes each axis
 // over the bounding box's largest extent into 2^q - 1 steps and rounds to the nearest, so the error

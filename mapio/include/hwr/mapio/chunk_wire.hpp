@@ -19,6 +19,15 @@
 //   payload                payload.size() bytes
 // The canonical form is independent of LCM's big-endian encoding, so a stored chunk can be checked
 // without LCM. The message's crc32 field holds the value as a non-negative int64 (0 .. 2^32-1).
+//
+// An acknowledgement (chunk_ack_t) is sealed the same way (same CRC32, same conventions), over the
+// fields in their chunk_ack_t.lcm order, leaving out t_ns (stamped when sent) and crc32:
+//   robot_id               uint32 byte length, then the bytes (no terminating NUL)
+//   run_id, cumulative_seq int64 each
+//   num_selective          int32
+//   selective[0..]         int64 each, selective.size() values
+//   resume_report          int8
+// A damaged ack that still decoded would otherwise release chunks the ground station never stored.
 
 #include <cstddef>
 #include <cstdint>
@@ -44,6 +53,11 @@ struct ChunkWireLimits {
 uint32_t chunk_crc32(const hwr_lcm::map_chunk_t& chunk);
 // Sets chunk->payload_size = payload.size() and chunk->crc32 = chunk_crc32(*chunk).
 void seal_chunk(hwr_lcm::map_chunk_t* chunk);
+// CRC32 of an ack's canonical serialization above.
+uint32_t ack_crc32(const hwr_lcm::chunk_ack_t& ack);
+// Sets ack->num_selective = selective.size() and ack->crc32 = ack_crc32(*ack). Every ack sent is
+// sealed (AckTracker::make_ack does it); t_ns may be stamped afterwards.
+void seal_ack(hwr_lcm::chunk_ack_t* ack);
 
 // A received chunk is trusted only when this returns OK. kCorruptData: CRC mismatch or payload_size
 // != payload.size(); kOutOfRange: a count, size or id outside its range, robot_id empty or too long;
@@ -51,9 +65,10 @@ void seal_chunk(hwr_lcm::map_chunk_t* chunk);
 // 1e-6), a flag not 0/1, chunk_index >= chunk_count on a segment_complete chunk. The one chunk
 // allowed without points or payload is a segment's empty completing chunk (segment_complete 1).
 core::Status verify_chunk(const hwr_lcm::map_chunk_t& chunk, const ChunkWireLimits& limits);
-// Same for an acknowledgement: robot_id as above, run_id >= 0, cumulative_seq >= -1,
-// num_selective == selective.size() <= max_selective, every selective value > cumulative_seq,
-// resume_report 0/1.
+// Same for an acknowledgement, in this order: kInvalidArgument when num_selective !=
+// selective.size(); kCorruptData on a CRC mismatch (or a crc32 field outside 0 .. 2^32-1); then
+// robot_id as above, run_id >= 0, cumulative_seq >= -1, num_selective <= max_selective, every
+// selective value > cumulative_seq, resume_report 0/1.
 core::Status verify_ack(const hwr_lcm::chunk_ack_t& ack, const ChunkWireLimits& limits);
 
 // LCM decoding with every length field (robot_id, payload_size, num_selective) checked against the
@@ -70,7 +85,7 @@ core::Status decode_ack_message(const uint8_t* data, size_t size, hwr_lcm::chunk
 
 // LCM encoding into `out` (resized to the message; capacity kept). kInvalidArgument when the message
 // is inconsistent (payload_size != payload.size(), num_selective != selective.size()) or too large
-// for LCM's int sizes.
+// for LCM's int sizes. Encoding does not seal: call seal_chunk / seal_ack first.
 core::Status encode_chunk_message(const hwr_lcm::map_chunk_t& chunk, std::vector<uint8_t>* out);
 core::Status encode_ack_message(const hwr_lcm::chunk_ack_t& ack, std::vector<uint8_t>* out);
 

@@ -1,0 +1,253 @@
+// MapStreamer's slot rule and owed completions (mapio/map_streamer.hpp; issue #5 item 3): the last
+// free batch slot is kept for a segment's completing batch, and a completing batch refused all the
+// same is replaced by an empty completing chunk, so the ground station always learns the segment's
+// final chunk_count.
+//
+// How the streamer thread is held still: a link window of one chunk and nobody acknowledging. The
+// first batch's chunk fills the window, the second's waits for it, and from then on the thread takes
+// no batch, so the slots the test fills stay filled. The slot-rule test runs on memq:// (nothing is
+// received there); the end-to-end test needs a ground station in the same process on another LCM
+// instance, so it runs on UDP multicast inside a private network namespace (private_netns.hpp),
+// with the GroundStation library as the receiver.
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <chrono>
+#include <filesystem>
+#include <functional>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "hwr/mapio/ground_station.hpp"
+#include "hwr/mapio/ground_store.hpp"
+#include "hwr/mapio/lcm_link.hpp"
+#include "hwr/mapio/map_streamer.hpp"
+#include "private_netns.hpp"
+
+namespace hwr::mapio {
+namespace {
+
+namespace fs = std::filesystem;
+constexpr const char* kUdpUrl = "udpm://239.255.76.67:7667?ttl=0&recv_buf_size=8388608";
+constexpr int64_t kMs = 1'000'000;
+
+// n points on a 2 cm grid, distinct per `tag` (z), so chunks of different batches differ.
+std::vector<ChunkPoint> grid(int n, int tag) {
+  std::vector<ChunkPoint> pts(static_cast<size_t>(n));
+  for (int i = 0; i < n; ++i) {
+    ChunkPoint& p = pts[static_cast<size_t>(i)];
+    p.x_m = 0.02f * static_cast<float>(i % 50);
+    p.y_m = 0.02f * static_cast<float>(i / 50);
+    p.z_m = 0.1f * static_cast<float>(tag);
+    p.r = static_cast<uint8_t>(tag);
+    p.g = static_cast<uint8_t>(i);
+    p.b = 7;
+    p.flags = 0;
+  }
+  return pts;
+}
+
+Eigen::Isometry3d T_world_segment(int32_t segment_id) {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.translation() = Eigen::Vector3d(10.0 * segment_id, 1.0, 0.0);
+  return T;
+}
+
+MapStreamerConfig two_slots_one_chunk_window() {
+  MapStreamerConfig c;
+  c.batch_slots = 2;
+  c.link.window_chunks = 1;  // unacknowledged, one chunk stops the thread from taking batches
+  c.link.initial_rto_ns = 50 * kMs;
+  c.link.max_rto_ns = 200 * kMs;  // a ground station started later gets a resend soon
+  return c;
+}
+
+// Polls (bounded, 5 s) until pred holds; the wait is for the streamer thread to reach a state, the
+// test asserts nothing about how long that took.
+bool wait_until(const MapStreamer& s, const std::function<bool(const MapStreamerStats&)>& pred) {
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(5);
+  while (std::chrono::steady_clock::now() < deadline) {
+    if (pred(s.stats())) return true;
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  return pred(s.stats());
+}
+
+struct Submitter {
+  MapStreamer& s;
+  bool operator()(int32_t segment_id, int n, bool complete, double wait_s = 0.0) {
+    const std::vector<ChunkPoint> pts = grid(n, n / 100);
+    return s.submit(segment_id, 0, T_world_segment(segment_id), pts.data(), nullptr, n, complete, wait_s);
+  }
+};
+
+// Segment 0's first batch (100 points) in flight, segment 1's first (200 points) encoded and waiting
+// for the window; both slots free again, and the thread takes nothing more until an ack comes.
+void hold_the_streamer_thread(MapStreamer& s) {
+  Submitter submit{s};
+  ASSERT_TRUE(submit(0, 100, false, 5.0));
+  ASSERT_TRUE(wait_until(s, [](const MapStreamerStats& st) { return st.in_flight == 1; }));
+  ASSERT_TRUE(submit(1, 200, false, 5.0));
+  ASSERT_TRUE(wait_until(s, [](const MapStreamerStats& st) {
+    return st.chunks == 2 && st.batch_slots_free == 2;
+  })) << "the streamer thread did not take the second batch";
+}
+
+TEST(MapStreamer, GivenOneSlotFreeThenOnlyACompletingBatchTakesIt) {
+  auto streamer = MapStreamer::start("memq://", "robot-slots", 1, two_slots_one_chunk_window());
+  ASSERT_TRUE(streamer.ok()) << streamer.status().message();
+  MapStreamer& s = **streamer;
+  hold_the_streamer_thread(s);
+  if (HasFatalFailure()) return;
+  Submitter submit{s};
+
+  ASSERT_TRUE(submit(1, 300, false));  // two free: a non-completing batch may take one
+  EXPECT_EQ(s.stats().batch_slots_free, 1);
+  EXPECT_FALSE(submit(0, 400, false));  // one free: kept for a completion
+  EXPECT_FALSE(submit(0, 400, false, 0.05)) << "waiting must not hand the kept slot to it either";
+  EXPECT_EQ(s.stats().batches_refused, 2);
+  EXPECT_EQ(s.stats().completions_owed, 0);  // not completing: nothing owed
+  ASSERT_TRUE(submit(0, 500, true));         // a completing batch takes the last slot
+  MapStreamerStats st = s.stats();
+  EXPECT_EQ(st.batch_slots_free, 0);
+  EXPECT_EQ(st.batches, 4);
+
+  // Every slot busy: completing batches are refused, and owed (as many as there are slots) ...
+  EXPECT_FALSE(submit(1, 600, true));
+  EXPECT_FALSE(submit(2, 700, true));
+  st = s.stats();
+  EXPECT_EQ(st.batches_refused, 4);
+  EXPECT_EQ(st.completions_owed, 2);
+  EXPECT_EQ(st.completions_lost, 0);
+  // ... then lost, and counted as such.
+  EXPECT_FALSE(submit(3, 800, true));
+  st = s.stats();
+  EXPECT_EQ(st.batches_refused, 5);
+  EXPECT_EQ(st.completions_owed, 2);
+  EXPECT_EQ(st.completions_lost, 1);
+  EXPECT_EQ(st.batches, 4);
+  EXPECT_FALSE(s.flush(0.05));  // nobody acknowledges
+}
+
+TEST(MapStreamer, GivenFewerThanTwoSlotsThenStartRefusesTheConfig) {
+  MapStreamerConfig c;
+  c.batch_slots = 1;
+  auto streamer = MapStreamer::start("memq://", "robot-slots", 1, c);
+  ASSERT_FALSE(streamer.ok());
+  EXPECT_EQ(streamer.status().code(), core::ErrorCode::kInvalidArgument);
+  EXPECT_NE(streamer.status().message().find("batch_slots >= 2"), std::string::npos)
+      << streamer.status().message();
+}
+
+// The ground station, on its own LCM instance and thread: stores, acknowledges.
+class GroundThread {
+ public:
+  explicit GroundThread(GroundStation* g) : g_(g) {}
+  core::Status start() {
+    auto link = LcmLink::open(kUdpUrl);
+    if (!link.ok()) return link.status();
+    link_ = std::make_unique<LcmLink>(std::move(link.value()));
+    link_->subscribe(kChannelMapChunk,
+                     [this](const uint8_t* d, size_t n) { g_->on_chunk_message(d, n, now()); });
+    thread_ = std::thread([this] {
+      while (!stop_.load()) {
+        if (!link_->handle(5).ok()) return;
+        g_->service(now(),
+                    [this](const hwr_lcm::chunk_ack_t& ack) { (void)link_->publish(kChannelMapAck, ack); });
+      }
+    });
+    return core::Status::Ok();
+  }
+  ~GroundThread() {
+    stop_.store(true);
+    if (thread_.joinable()) thread_.join();
+  }
+  void join() {
+    stop_.store(true);
+    if (thread_.joinable()) thread_.join();
+  }
+
+ private:
+  static int64_t now() {
+    return std::chrono::duration_cast<std::chrono::nanoseconds>(
+               std::chrono::steady_clock::now().time_since_epoch())
+        .count();
+  }
+  GroundStation* g_;
+  std::unique_ptr<LcmLink> link_;
+  std::thread thread_;
+  std::atomic<bool> stop_{false};
+};
+
+TEST(MapStreamer, GivenTheCompletingBatchRefusedThenTheGroundStationStillSeesTheSegmentComplete) {
+  if (!test::in_private_netns()) {
+    HWR_RUN_IN_PRIVATE_NETNS();
+    return;
+  }
+  ASSERT_TRUE(test::setup_private_loopback());
+  const std::string out = (fs::temp_directory_path() / ("hwr_owed_" + std::to_string(getpid()))).string();
+  fs::remove_all(out);
+  const int64_t run_id = 5;
+  auto streamer = MapStreamer::start(kUdpUrl, "robot-owed", run_id, two_slots_one_chunk_window());
+  ASSERT_TRUE(streamer.ok()) << streamer.status().message();
+  MapStreamer& s = **streamer;
+  hold_the_streamer_thread(s);  // segment 0: 100 points in flight; segment 1: 200 points waiting
+  if (HasFatalFailure()) return;
+  Submitter submit{s};
+  ASSERT_TRUE(submit(1, 300, false));   // segment 1, queued
+  EXPECT_FALSE(submit(0, 400, false));  // the last slot is kept: lost to the link
+  ASSERT_TRUE(submit(0, 500, true));    // segment 0 completes in the last slot
+  EXPECT_FALSE(submit(1, 600, true));   // segment 1's completion refused: owed
+  MapStreamerStats st = s.stats();
+  EXPECT_EQ(st.batches_refused, 2);
+  EXPECT_EQ(st.completions_owed, 1);
+
+  // Only now does a ground station listen (the chunks sent so far went nowhere).
+  GroundStationConfig gc;
+  gc.out_dir = out;
+  auto ground = GroundStation::open(gc);
+  ASSERT_TRUE(ground.ok()) << ground.status().message();
+  GroundThread gt(ground->get());
+  ASSERT_TRUE(gt.start().ok());
+  EXPECT_TRUE(s.flush(10.0)) << "not everything was acknowledged";
+  gt.join();
+
+  st = s.stats();
+  EXPECT_EQ(st.chunks, 4);  // batches with points: 100, 200, 300, 500
+  EXPECT_EQ(st.acked, 5);   // and the empty completing chunk owed for segment 1
+  EXPECT_EQ(st.completions_owed, 1);
+  EXPECT_EQ(st.completions_lost, 0);
+
+  const GroundStore& store = (*ground)->store();
+  const auto segs = store.segments("robot-owed", run_id);
+  ASSERT_EQ(segs.size(), 2u);
+  EXPECT_EQ(segs[0].segment_id, 0);
+  EXPECT_TRUE(segs[0].complete);
+  EXPECT_EQ(segs[0].chunk_count, 2);
+  EXPECT_EQ(segs[0].points_stored, 100 + 500);
+  EXPECT_EQ(segs[1].segment_id, 1);
+  EXPECT_TRUE(segs[1].complete) << "segment 1's refused completion was never made up for";
+  EXPECT_EQ(segs[1].chunk_count, 3);
+  EXPECT_EQ(segs[1].points_stored, 200 + 300);
+  // Order: the owed completion came after the batch queued before it (300 points), not before.
+  std::vector<hwr_lcm::map_chunk_t> chunks;
+  ASSERT_TRUE(store.load_segment("robot-owed", run_id, 1, 0, &chunks).ok());
+  ASSERT_EQ(chunks.size(), 3u);
+  EXPECT_EQ(chunks[0].num_points, 200);
+  EXPECT_EQ(chunks[1].num_points, 300);
+  EXPECT_EQ(chunks[1].segment_complete, 0);
+  EXPECT_EQ(chunks[2].num_points, 0);
+  EXPECT_EQ(chunks[2].segment_complete, 1);
+  EXPECT_EQ(chunks[2].chunk_count, 3);
+  EXPECT_DOUBLE_EQ(chunks[2].T_world_segment[3], 10.0);  // segment 1's pose, as submitted
+  EXPECT_DOUBLE_EQ(chunks[2].T_world_segment[7], 1.0);
+  streamer->reset();
+  ground->reset();
+  fs::remove_all(out);
+}
+
+}  // namespace
+}  // namespace hwr::mapio
