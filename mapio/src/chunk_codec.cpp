@@ -283,9 +283,10 @@ struct GridKey {
 // The order in which the kd-tree positions bitstream `positions` decodes: order[j] is the index in
 // `cloud` of decoded point j. Each original's quantized coordinates come from Draco's own
 // AttributeQuantizationTransform (what its kd-tree encoder applies), each decoded point's from
-// inverting the dequantization (exact: the float rounding is far below half a step). Points sharing
-// quantized coordinates are interchangeable. An empty result (never seen) makes the caller fall back
-// to the single layout.
+// inverting the dequantization, which is exact while float32's spacing at the chunk's coordinates is
+// well below half a quantization step. Points sharing quantized coordinates are interchangeable.
+// Far from the origin (kilometres, at 1 mm) neighbouring steps collapse onto one float and the
+// matching fails: an empty result, and the caller falls back to the single layout.
 std::vector<uint32_t> kd_tree_order(const draco::PointCloud& cloud, int q,
                                     const std::vector<uint8_t>& positions) {
   const int n = static_cast<int>(cloud.num_points());

@@ -1,4 +1,5 @@
 #include "hwr/mapio/map_streamer.hpp"
+#include "hwr/mapio/spatial_order.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -63,6 +64,7 @@ struct MapStreamer::Impl {
         pool(static_cast<size_t>(c.batch_slots), prototype(c)),
         queue(static_cast<size_t>(c.batch_slots)),
         owed(static_cast<size_t>(c.batch_slots)),
+        spatial_order(c.max_batch_points),
         poses(64),
         robot_id_(robot_id),
         run_id_(run_id) {}
@@ -79,8 +81,10 @@ struct MapStreamer::Impl {
   ChunkSender sender;
   core::ObjectPool<Batch> pool;
   core::SpscRing<Batch*> queue;
-  core::SpscRing<OwedCompletion> owed;  // mapping task -> streamer thread (map_streamer.hpp slot rule)
-  core::SpscRing<PoseSample> poses;     // camera task -> streamer thread
+  core::SpscRing<OwedCompletion> owed;
+  SpatialOrder
+      spatial_order;  // streamer thread  // mapping task -> streamer thread (map_streamer.hpp slot rule)
+  core::SpscRing<PoseSample> poses;  // camera task -> streamer thread
   std::string robot_id_;
   int64_t run_id_;
   hwr_lcm::status_t status_pending;  // under mu
@@ -161,6 +165,7 @@ struct MapStreamer::Impl {
     } else {
       last_error_m = r->max_position_error_m;
       std::lock_guard<std::mutex> lock(mu);
+      if (!r->split && codec.color_bits < 8 && !codec.preserve_order) ++stats.split_fallbacks;
       ++stats.chunks;
       stats.points += n;
       stats.payload_bytes += static_cast<int64_t>(payload.size());
@@ -169,11 +174,14 @@ struct MapStreamer::Impl {
     make_chunk(b, n, ends_complete);
   }
 
-  void encode_batch(const Batch& b) {
+  void encode_batch(Batch& b) {
     if (b.n == 0) {
       if (b.complete) make_chunk(b, 0, true);
       return;
     }
+    // Compact chunks: the batch in Z-order before it is cut (spatial_order.hpp).
+    if (config.spatial_order)
+      (void)spatial_order.sort(b.points.data(), b.has_ids ? b.ids.data() : nullptr, b.n);
     for (int first = 0; first < b.n; first += config.max_points_per_chunk) {
       const int n = std::min(config.max_points_per_chunk, b.n - first);
       const bool last = first + n == b.n;
@@ -323,6 +331,19 @@ bool MapStreamer::submit(int32_t segment_id, int32_t segment_version,
                          const Eigen::Isometry3d& T_world_segment, const ChunkPoint* points_segment,
                          const uint32_t* ids, int n, bool segment_complete, double wait_s) {
   Impl& m = *impl_;
+  if (n > m.config.max_batch_points && points_segment != nullptr) {
+    // Larger than a slot: in slot-sized pieces, the last one carrying the completion.
+    const int piece = m.config.max_batch_points;
+    bool all_taken = true;
+    for (int first = 0; first < n; first += piece) {
+      const int k = std::min(piece, n - first);
+      all_taken =
+          submit(segment_id, segment_version, T_world_segment, points_segment + first,
+                 ids != nullptr ? ids + first : nullptr, k, segment_complete && first + k == n, wait_s) &&
+          all_taken;
+    }
+    return all_taken;
+  }
   // Slot rule (map_streamer.hpp): the last free slot is for a completing batch. Only this thread
   // acquires and the streamer thread only releases, so a count seen here can only grow before the
   // acquire below.
@@ -347,10 +368,12 @@ bool MapStreamer::submit(int32_t segment_id, int32_t segment_version,
     if (ids != nullptr) std::copy(ids, ids + n, b->ids.begin());
     {
       // Before the batch is visible: a flush() from now on waits for the thread's next full pass.
+      // The count moves under the same lock, so a pass that ends in between cannot declare the
+      // old count drained after this batch was taken (flush() would return before its chunks).
       std::lock_guard<std::mutex> lock(m.mu);
       m.drained = false;
+      b->seq = m.submitted.fetch_add(1);
     }
-    b->seq = m.submitted.fetch_add(1);
     if (m.queue.try_push(b)) {
       std::lock_guard<std::mutex> lock(m.mu);
       ++m.stats.batches;
@@ -368,10 +391,10 @@ bool MapStreamer::submit(int32_t segment_id, int32_t segment_version,
     o.segment_version = segment_version;
     copy_pose(T_world_segment, o.T_world_segment);
     {
-      std::lock_guard<std::mutex> lock(m.mu);
+      std::lock_guard<std::mutex> lock(m.mu);  // as for a batch above
       m.drained = false;
+      o.seq = m.submitted.fetch_add(1);
     }
-    o.seq = m.submitted.fetch_add(1);
     owed = m.owed.try_push(o);
     if (!owed) m.submitted.fetch_sub(1);
   }

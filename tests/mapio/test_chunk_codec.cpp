@@ -386,6 +386,34 @@ TEST(ChunkCodecSplit, GivenFewerColourBitsOnAKdTreeChunkThenEveryPointKeepsItsOw
   }
 }
 
+// Kilometres from the origin float32 no longer separates neighbouring quantization steps (its
+// spacing at 7 km is 0.5 mm, the half step 0.5 mm), so the decoded order cannot be tied back to the
+// points: the chunk goes in the single layout, colours still reduced as configured.
+TEST(ChunkCodecSplit, GivenCoordinatesKilometresOutThenTheSingleLayoutWithReducedColours) {
+  const Cloud c = random_cloud(5000, 5.0, 7000.0, 43);
+  ChunkCodecConfig cfg;
+  cfg.color_bits = 5;
+  cfg.with_point_ids = true;
+  EncodedChunkInfo info;
+  const std::vector<uint8_t> bytes = encode_or_die(c, cfg, &info);
+  EXPECT_FALSE(info.split);
+  DecodedChunk out;
+  ASSERT_TRUE(decode_chunk(bytes.data(), bytes.size(), 5000, ChunkDecodeLimits{}, &out).ok());
+  std::unordered_map<uint32_t, size_t> index_of_id;
+  for (size_t i = 0; i < c.ids.size(); ++i) index_of_id[c.ids[i]] = i;
+  for (size_t k = 0; k < out.points.size(); ++k) {
+    const ChunkPoint& a = c.points[index_of_id.at(out.ids[k])];
+    ASSERT_EQ(out.points[k].r, reduced(a.r, 5));
+    ASSERT_EQ(out.points[k].g, reduced(a.g, 5));
+    ASSERT_EQ(out.points[k].b, reduced(a.b, 5));
+    ASSERT_LE(std::fabs(double{a.x_m} - out.points[k].x_m), info.max_position_error_m);
+  }
+  // Near the origin the same cloud takes the split layout.
+  const Cloud near = random_cloud(5000, 5.0, 0.0, 43);
+  encode_or_die(near, cfg, &info);
+  EXPECT_TRUE(info.split);
+}
+
 // What the split buys: with coarser colour a kd-tree chunk shrinks by ~1 byte/point, where the single
 // layout (colour as kd-tree dimensions) gains almost nothing. The room cloud below, 5-bit colour.
 Cloud room_cloud();

@@ -11,6 +11,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdlib>
@@ -123,7 +124,19 @@ void expect_merged_equals(const std::string& out, const Stream& s) {
   CloudArrays cloud;
   ASSERT_TRUE(read_ply(merged[0].string(), &cloud).ok());
   ASSERT_EQ(cloud.size(), s.points);
+  // Grid key -> the submitted colour, as the streamer's codec keeps it (5 bits by default).
+  const int color_bits = MapStreamerConfig{}.codec.color_bits;
+  std::unordered_map<int64_t, std::array<uint8_t, 3>> expected_rgb;
+  for (size_t b = 0; b < s.batches.size(); ++b) {
+    for (const ChunkPoint& p : s.batches[b]) {
+      const int64_t gx = std::lround(p.x_m / 0.02), gy = std::lround(p.y_m / 0.02);
+      expected_rgb[(static_cast<int64_t>(s.segment_of[b]) << 40) | (gy << 20) | gx] = {
+          reduce_color_channel(p.r, color_bits), reduce_color_channel(p.g, color_bits),
+          reduce_color_channel(p.b, color_bits)};
+    }
+  }
   std::unordered_map<int64_t, int> seen;  // grid key -> count
+  int wrong_colour = 0;
   for (size_t i = 0; i < cloud.size(); ++i) {
     const double x = cloud.xyz[3 * i], y = cloud.xyz[3 * i + 1], z = cloud.xyz[3 * i + 2];
     const int seg = static_cast<int>(std::lround((z - 1.0) / 0.01));
@@ -132,9 +145,15 @@ void expect_merged_equals(const std::string& out, const Stream& s) {
     EXPECT_NEAR(xs, 0.02 * gx, 0.001);
     EXPECT_NEAR(y, 0.02 * gy, 0.001);
     EXPECT_NEAR(z, 1.0 + 0.01 * seg, 0.001);
-    ++seen[(static_cast<int64_t>(seg) << 40) | (gy << 20) | gx];
+    const int64_t key = (static_cast<int64_t>(seg) << 40) | (gy << 20) | gx;
+    ++seen[key];
+    const auto it = expected_rgb.find(key);
+    if (it == expected_rgb.end() || it->second[0] != cloud.rgb[3 * i] ||
+        it->second[1] != cloud.rgb[3 * i + 1] || it->second[2] != cloud.rgb[3 * i + 2])
+      ++wrong_colour;
   }
   EXPECT_EQ(seen.size(), s.points);  // no point twice
+  EXPECT_EQ(wrong_colour, 0) << "points whose colour is not the submitted one at " << color_bits << " bits";
 }
 
 struct Fault {

@@ -14,7 +14,9 @@
 //   unique id 4  NORMAL    float32 x3 (only when normals are passed; quantized, lossy)
 // (a) single: one Draco point cloud holding every attribute: sequential when preserve_order, else
 //     kd-tree with lossless colour (color_bits 8). Stock draco_decoder writes it as a coloured PLY.
-// (b) split: kd-tree chunks with color_bits < 8. Two Draco point clouds back to back: the first holds
+// (b) split: kd-tree chunks with color_bits < 8 (unless the chunk lies kilometres from its frame's
+//     origin, where float32 cannot tell neighbouring quantization steps apart and (a) is used; see
+//     EncodedChunkInfo::split). Two Draco point clouds back to back: the first holds
 //     the positions alone, kd-tree coded; the second the other attributes, sequentially coded
 //     (difference prediction + entropy coding) in the order the first one decodes to, the colour as
 //     levels 0..2^b - 1 under unique id 4 + b (b = color_bits; 5..11). Draco's kd-tree coder treats

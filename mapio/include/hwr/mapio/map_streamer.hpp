@@ -10,7 +10,7 @@
 // one is kept for a batch with segment_complete = true; a batch without it takes a slot only while
 // at least 2 are free. A completing batch refused all the same (every slot busy, or too large) still
 // completes its segment: submit() records an owed completion (segment id, version, T_world_segment)
-// in a preallocated ring of batch_slots entries, and the streamer thread, in submission order (after
+// in a preallocated ring (room for at least batch_slots), and the streamer thread, in submission order (after
 // the batches queued before it), sends an empty completing chunk in its place, so the ground station
 // gets the segment's final chunk_count (stats.completions_owed). The refused batch's points are lost
 // to the link, as for any refused batch. Only when that ring is full too is the completion lost
@@ -61,6 +61,7 @@ struct MapStreamerConfig {
   size_t max_chunk_bytes = 60'000;  // one LCM datagram (no LCM fragmentation: a lost fragment loses all)
   int batch_slots = 16;             // batches waiting for the streamer thread (>= 2: see the slot rule)
   int max_batch_points = 65'536;    // points per submit() at most
+  bool spatial_order = true;  // sort each batch along a Z-order curve before cutting it (spatial_order.hpp)
 };
 
 struct MapStreamerStats {
@@ -72,6 +73,8 @@ struct MapStreamerStats {
   int64_t payload_bytes = 0;       // encoded payload bytes (first sends)
   int64_t raw_bytes = 0;           // 15 bytes per point (float xyz + rgb): the "direct" size
   int64_t encode_errors = 0;
+  int64_t split_fallbacks =
+      0;  // 5-bit chunks sent in the single layout (chunk_codec.hpp: far from the origin)
   int64_t sends = 0, resends = 0, acked = 0;  // from the ChunkSender
   int in_flight = 0;
   int64_t link_errors = 0;
@@ -91,7 +94,8 @@ class MapStreamer {
 
   // Mapping task (one thread): points in the segment frame, ids (may be null) per point. Without a
   // slot it may take (slot rule above) it waits up to wait_s for one (0: never blocks), then refuses
-  // (false, counted; a refused completing batch still completes its segment). Does not allocate.
+  // (false, counted; a refused completing batch still completes its segment). A batch of more than
+  // max_batch_points goes in slot-sized pieces (false if any piece was refused). Does not allocate.
   bool submit(int32_t segment_id, int32_t segment_version, const Eigen::Isometry3d& T_world_segment,
               const ChunkPoint* points_segment, const uint32_t* ids, int n, bool segment_complete,
               double wait_s = 0.0);
