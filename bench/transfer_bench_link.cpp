@@ -1,5 +1,7 @@
 #include "transfer_bench_link.hpp"
 
+#include "hwr/mapio/spatial_order.hpp"
+
 #include <stdlib.h>
 
 #include <algorithm>
@@ -29,20 +31,25 @@ int64_t steady_ns() {
       .count();
 }
 
-// Decoded points of one chunk against the submitted ones: Draco's kd-tree coder reorders points
-// within a chunk, so each decoded point is matched to the nearest unused submitted point of the same
-// flags and the same colour as the codec keeps it (reduce_color_channel at color_bits), searched first
-// within kRadiusM (twice the codec's 1 mm per-axis bound) on a hash grid, then, when nothing is there,
-// over the whole chunk.
-class ChunkMatcher {
+// A segment's decoded points against its submitted ones. The kd-tree coder reorders points within a
+// chunk and the streamer reorders a batch before cutting it, so points are paired by position:
+// decoded point k may pair with submitted point i of the same flags and the same colour as the codec
+// keeps it (reduce_color_channel at color_bits) when every axis is within bound_m (the codec's
+// guarantee). A maximum bipartite matching over those pairs (Kuhn's augmenting paths; almost every
+// point has a single candidate) pairs each decoded point with a distinct submitted one whenever the
+// bound held; a greedy nearest-point pairing could take another point's partner where two points
+// of one colour lie within 2 mm and report a false excess. A decoded point left unpaired is then
+// paired with its nearest unused candidate at any distance (its error, over the bound, is reported),
+// or counted unmatched.
+class SegmentMatcher {
  public:
-  explicit ChunkMatcher(int color_bits) : color_bits_(color_bits) {}
+  SegmentMatcher(int color_bits, double bound_m) : color_bits_(color_bits), bound_m_(bound_m) {}
+
   void match(const std::vector<mapio::ChunkPoint>& ref, const std::vector<mapio::ChunkPoint>& dec,
              TransferResult* r) {
     head_.clear();
     head_.reserve(ref.size());
     next_.assign(ref.size(), -1);
-    used_.assign(ref.size(), false);
     for (size_t i = 0; i < ref.size(); ++i) {
       auto [it, fresh] =
           head_.try_emplace(key(cell(ref[i].x_m), cell(ref[i].y_m), cell(ref[i].z_m)), static_cast<int>(i));
@@ -51,70 +58,142 @@ class ChunkMatcher {
         it->second = static_cast<int>(i);
       }
     }
+    // Candidate pairs within the bound, as adjacency lists (CSR).
+    adj_start_.assign(dec.size() + 1, 0);
+    adj_.clear();
+    for (size_t k = 0; k < dec.size(); ++k) {
+      for_near(dec[k], [&](int i) {
+        if (same_attributes(ref[static_cast<size_t>(i)], dec[k]) &&
+            linf(ref[static_cast<size_t>(i)], dec[k]) <= bound_m_)
+          adj_.push_back(i);
+      });
+      adj_start_[k + 1] = static_cast<int>(adj_.size());
+    }
+    partner_of_ref_.assign(ref.size(), -1);
+    partner_of_dec_.assign(dec.size(), -1);
+    visit_stamp_.assign(ref.size(), 0);
+    int stamp = 0;
+    for (size_t k = 0; k < dec.size(); ++k) {
+      ++stamp;
+      augment(static_cast<int>(k), stamp);
+    }
     int fallbacks = 0;
-    for (const mapio::ChunkPoint& d : dec) {
-      int best = -1;
-      double best_d2 = INFINITY;
-      auto consider = [&](int i) {
-        const mapio::ChunkPoint& p = ref[static_cast<size_t>(i)];
-        if (used_[static_cast<size_t>(i)] || reduced(p.r) != d.r || reduced(p.g) != d.g ||
-            reduced(p.b) != d.b || p.flags != d.flags)
-          return;
-        const double dx = p.x_m - d.x_m, dy = p.y_m - d.y_m, dz = p.z_m - d.z_m;
-        const double d2 = dx * dx + dy * dy + dz * dz;
-        if (d2 < best_d2) {
-          best_d2 = d2;
-          best = i;
-        }
-      };
-      for (int64_t cx = cell(d.x_m - kRadiusM); cx <= cell(d.x_m + kRadiusM); ++cx)
-        for (int64_t cy = cell(d.y_m - kRadiusM); cy <= cell(d.y_m + kRadiusM); ++cy)
-          for (int64_t cz = cell(d.z_m - kRadiusM); cz <= cell(d.z_m + kRadiusM); ++cz) {
-            auto it = head_.find(key(cx, cy, cz));
-            if (it == head_.end()) continue;
-            for (int i = it->second; i >= 0; i = next_[static_cast<size_t>(i)]) consider(i);
-          }
-      if (best < 0 && fallbacks < kMaxFallbacksPerChunk) {
-        ++fallbacks;
-        for (size_t i = 0; i < ref.size(); ++i) consider(static_cast<int>(i));
-      }
+    for (size_t k = 0; k < dec.size(); ++k) {
       ++r->points_checked;
-      if (best < 0) {
-        ++r->unmatched;
-        continue;
+      int i = partner_of_dec_[k];
+      if (i < 0) {
+        // Over the bound (or no candidate near): the nearest unused candidate at any distance.
+        double best_d2 = INFINITY;
+        auto consider = [&](int c) {
+          if (partner_of_ref_[static_cast<size_t>(c)] >= 0 ||
+              !same_attributes(ref[static_cast<size_t>(c)], dec[k]))
+            return;
+          const double d2 = dist2(ref[static_cast<size_t>(c)], dec[k]);
+          if (d2 < best_d2) {
+            best_d2 = d2;
+            i = c;
+          }
+        };
+        for_near(dec[k], consider);
+        if (i < 0 && fallbacks < kMaxFallbacks) {
+          ++fallbacks;
+          for (size_t c = 0; c < ref.size(); ++c) consider(static_cast<int>(c));
+        }
+        if (i < 0) {
+          ++r->unmatched;
+          continue;
+        }
+        partner_of_ref_[static_cast<size_t>(i)] = static_cast<int>(k);
       }
-      used_[static_cast<size_t>(best)] = true;
-      const mapio::ChunkPoint& p = ref[static_cast<size_t>(best)];
-      const double ax = std::max({std::abs(static_cast<double>(p.x_m) - d.x_m),
-                                  std::abs(static_cast<double>(p.y_m) - d.y_m),
-                                  std::abs(static_cast<double>(p.z_m) - d.z_m)});
-      r->max_axis_error_mm = std::max(r->max_axis_error_mm, ax * 1e3);
-      r->max_error_mm = std::max(r->max_error_mm, std::sqrt(best_d2) * 1e3);
+      const mapio::ChunkPoint& p = ref[static_cast<size_t>(i)];
+      const mapio::ChunkPoint& d = dec[k];
+      r->max_axis_error_mm = std::max(r->max_axis_error_mm, linf(p, d) * 1e3);
+      r->max_error_mm = std::max(r->max_error_mm, std::sqrt(dist2(p, d)) * 1e3);
       r->max_color_error =
           std::max({r->max_color_error, std::abs(p.r - d.r), std::abs(p.g - d.g), std::abs(p.b - d.b)});
     }
   }
 
  private:
+  struct StackFrame {
+    int k;
+    int edge;  // next adjacency entry to try
+  };
+  // Kuhn's augmenting path from decoded point k (iterative depth-first search over alternating paths).
+  bool augment(int k0, int stamp) {
+    stack_.clear();
+    stack_.push_back({k0, adj_start_[static_cast<size_t>(k0)]});
+    while (!stack_.empty()) {
+      StackFrame& f = stack_.back();
+      if (f.edge == adj_start_[static_cast<size_t>(f.k) + 1]) {
+        stack_.pop_back();
+        continue;
+      }
+      const int i = adj_[static_cast<size_t>(f.edge++)];
+      if (visit_stamp_[static_cast<size_t>(i)] == stamp) continue;
+      visit_stamp_[static_cast<size_t>(i)] = stamp;
+      const int owner = partner_of_ref_[static_cast<size_t>(i)];
+      if (owner < 0) {
+        // Free: flip the path. Each frame's last tried edge (edge - 1) is its new partner.
+        for (auto it = stack_.rbegin(); it != stack_.rend(); ++it) {
+          const int ri = adj_[static_cast<size_t>(it->edge - 1)];
+          partner_of_ref_[static_cast<size_t>(ri)] = it->k;
+          partner_of_dec_[static_cast<size_t>(it->k)] = ri;
+        }
+        return true;
+      }
+      stack_.push_back({owner, adj_start_[static_cast<size_t>(owner)]});
+    }
+    return false;
+  }
+
+  template <class F>
+  void for_near(const mapio::ChunkPoint& d, F&& f) const {
+    for (int64_t cx = cell(d.x_m - kRadiusM); cx <= cell(d.x_m + kRadiusM); ++cx)
+      for (int64_t cy = cell(d.y_m - kRadiusM); cy <= cell(d.y_m + kRadiusM); ++cy)
+        for (int64_t cz = cell(d.z_m - kRadiusM); cz <= cell(d.z_m + kRadiusM); ++cz) {
+          auto it = head_.find(key(cx, cy, cz));
+          if (it == head_.end()) continue;
+          for (int i = it->second; i >= 0; i = next_[static_cast<size_t>(i)]) f(i);
+        }
+  }
+  bool same_attributes(const mapio::ChunkPoint& p, const mapio::ChunkPoint& d) const {
+    return reduced(p.r) == d.r && reduced(p.g) == d.g && reduced(p.b) == d.b && p.flags == d.flags;
+  }
+  static double linf(const mapio::ChunkPoint& p, const mapio::ChunkPoint& d) {
+    return std::max({std::abs(static_cast<double>(p.x_m) - d.x_m),
+                     std::abs(static_cast<double>(p.y_m) - d.y_m),
+                     std::abs(static_cast<double>(p.z_m) - d.z_m)});
+  }
+  static double dist2(const mapio::ChunkPoint& p, const mapio::ChunkPoint& d) {
+    const double dx = static_cast<double>(p.x_m) - d.x_m, dy = static_cast<double>(p.y_m) - d.y_m,
+                 dz = static_cast<double>(p.z_m) - d.z_m;
+    return dx * dx + dy * dy + dz * dz;
+  }
   uint8_t reduced(uint8_t v) const { return mapio::reduce_color_channel(v, color_bits_); }
-  int color_bits_;
+
   static constexpr double kCellM = 0.004;
   static constexpr double kRadiusM = 0.002;
-  static constexpr int kMaxFallbacksPerChunk = 64;
+  static constexpr int kMaxFallbacks = 64;
   static int64_t cell(double v) { return static_cast<int64_t>(std::floor(v / kCellM)); }
   static int64_t key(int64_t x, int64_t y, int64_t z) {
     constexpr int64_t kMask = (int64_t{1} << 21) - 1;
     return ((x & kMask) << 42) | ((y & kMask) << 21) | (z & kMask);
   }
+  int color_bits_;
+  double bound_m_;
   std::unordered_map<int64_t, int> head_;
   std::vector<int> next_;
-  std::vector<bool> used_;
+  std::vector<int> adj_start_, adj_;
+  std::vector<int> partner_of_ref_, partner_of_dec_, visit_stamp_;
+  std::vector<StackFrame> stack_;
 };
 
-// Reads the run back from the ground store (CRC-checked), decodes every chunk and compares it with
-// the submitted points of its segment, in submission order (chunks are cut in that order).
+// Reads the run back from the ground store (CRC-checked), decodes every chunk and compares each
+// segment's decoded points with the points submitted for it (the streamer reorders a batch before
+// cutting it into chunks, so chunks are matched as a whole segment).
 core::Status verify_store(const std::string& dir, int64_t run_id, const PointStream& map, int color_bits,
-                          TransferResult* r) {
+                          double bound_m, TransferResult* r) {
   std::map<int32_t, std::vector<std::pair<size_t, int>>> ranges;  // segment -> (first, n) in submit order
   for (const StreamBatch& b : map.batches)
     if (b.n > 0) ranges[b.segment_id].emplace_back(b.first, b.n);
@@ -122,35 +201,27 @@ core::Status verify_store(const std::string& dir, int64_t run_id, const PointStr
   if (!store.ok()) return store.status();
   std::vector<hwr_lcm::map_chunk_t> chunks;
   mapio::DecodedChunk decoded;
-  std::vector<mapio::ChunkPoint> ref;
-  ChunkMatcher matcher(color_bits);
+  std::vector<mapio::ChunkPoint> ref, got;
+  SegmentMatcher matcher(color_bits, bound_m);
   for (const auto& seg : store->segments(kRobotId, run_id)) {
     HWR_RETURN_IF_ERROR(store->load_segment(kRobotId, run_id, seg.segment_id, seg.version, &chunks));
-    const auto& rs = ranges[seg.segment_id];
-    size_t range_i = 0;
-    int offset = 0;
+    ref.clear();
+    for (const auto& [first, n] : ranges[seg.segment_id])
+      ref.insert(ref.end(), map.points_segment.begin() + static_cast<ptrdiff_t>(first),
+                 map.points_segment.begin() + static_cast<ptrdiff_t>(first) + n);
+    got.clear();
     for (const hwr_lcm::map_chunk_t& c : chunks) {
-      ref.clear();
-      while (static_cast<int>(ref.size()) < c.num_points && range_i < rs.size()) {
-        const auto [first, n] = rs[range_i];
-        const int take = std::min(n - offset, c.num_points - static_cast<int>(ref.size()));
-        ref.insert(ref.end(), map.points_segment.begin() + static_cast<ptrdiff_t>(first) + offset,
-                   map.points_segment.begin() + static_cast<ptrdiff_t>(first) + offset + take);
-        offset += take;
-        if (offset == n) {
-          ++range_i;
-          offset = 0;
-        }
-      }
-      if (static_cast<int>(ref.size()) != c.num_points) {
-        return core::CorruptData("segment " + std::to_string(seg.segment_id) + " chunk " +
-                                 std::to_string(c.chunk_index) + " holds more points than were submitted");
-      }
       if (c.num_points == 0) continue;
       HWR_RETURN_IF_ERROR(mapio::decode_chunk(c.payload.data(), c.payload.size(), c.num_points,
                                               mapio::ChunkDecodeLimits{}, &decoded));
-      matcher.match(ref, decoded.points, r);
+      got.insert(got.end(), decoded.points.begin(), decoded.points.end());
     }
+    if (got.size() != ref.size()) {
+      return core::CorruptData("segment " + std::to_string(seg.segment_id) + " holds " +
+                               std::to_string(got.size()) + " points, " + std::to_string(ref.size()) +
+                               " were submitted");
+    }
+    matcher.match(ref, got, r);
   }
   if (r->points_checked != static_cast<int64_t>(map.size())) {
     return core::CorruptData("the ground store holds " + std::to_string(r->points_checked) + " points, " +
@@ -286,7 +357,8 @@ TransferResult run_transfer(const PointStream& map, TransferMode mode, int64_t r
   station.value().reset();  // releases the store's lock
 
   if (r.ok && setup.verify_points) {
-    const core::Status st = verify_store(dir, run_id, map, setup.streamer.codec.color_bits, &r);
+    const core::Status st = verify_store(dir, run_id, map, setup.streamer.codec.color_bits,
+                                         setup.streamer.codec.max_position_error_m, &r);
     if (!st.ok()) {
       r.ok = false;
       r.error = "verifying the ground store: " + st.message();
@@ -322,11 +394,17 @@ CodecThroughput measure_codec(const PointStream& map, const mapio::MapStreamerCo
     out.points += n;
     out.payload_bytes += static_cast<int64_t>(buf.size());
   };
+  mapio::SpatialOrder order(config.max_batch_points);
+  std::vector<mapio::ChunkPoint> batch;
+  batch.reserve(static_cast<size_t>(config.max_batch_points));
   const auto t0 = std::chrono::steady_clock::now();
-  for (const StreamBatch& b : map.batches)
+  for (const StreamBatch& b : map.batches) {
+    batch.assign(map.points_segment.begin() + static_cast<ptrdiff_t>(b.first),
+                 map.points_segment.begin() + static_cast<ptrdiff_t>(b.first) + b.n);
+    if (config.spatial_order) order.sort(batch.data(), nullptr, b.n);
     for (int first = 0; first < b.n; first += config.max_points_per_chunk)
-      encode(encode, map.points_segment.data() + b.first + first,
-             std::min(config.max_points_per_chunk, b.n - first));
+      encode(encode, batch.data() + first, std::min(config.max_points_per_chunk, b.n - first));
+  }
   const auto t1 = std::chrono::steady_clock::now();
   mapio::DecodedChunk decoded;
   for (size_t i = 0; i < payloads.size(); ++i) {

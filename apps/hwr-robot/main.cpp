@@ -147,11 +147,13 @@ void inertial_task(void* ctx, int64_t now_ns) {
   while (r->streams->mag.try_pop(m)) {
     ++r->mag;
     r->estimator->add_mag(m);
+    r->mapper->add_mag(m);  // keyframe metadata for relocalization
   }
   hwr::hal::GnssFix g;
   while (r->streams->gnss.try_pop(g)) {
     ++r->gnss;
     if (g.has_3d_fix()) ++r->gnss_3d;
+    r->mapper->add_gnss(g);
   }
 }
 

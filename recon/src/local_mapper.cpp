@@ -216,6 +216,7 @@ void LocalMapper::fuse(const estimation::KeyframeStore& keyframes, int id, Segme
     ++counters_.keyframes_without_images;
   }
   segment_.keyframes.push_back(stored_keyframe(kf, id, T_world_cam, t_ns));
+  sensor_tags_.tag(&segment_.keyframes.back());
   ++counters_.keyframes_fused;
 
   if (stream_sink_ != nullptr) {

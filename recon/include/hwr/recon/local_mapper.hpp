@@ -24,6 +24,7 @@
 #include "hwr/estimation/keyframe_store.hpp"
 #include "hwr/recon/junction.hpp"
 #include "hwr/recon/keyframe_cloud.hpp"
+#include "hwr/recon/keyframe_sensor_tags.hpp"
 #include "hwr/recon/map_store.hpp"
 #include "hwr/recon/voxel_map.hpp"
 
@@ -92,6 +93,10 @@ class LocalMapper {
   const LocalMapperConfig& config() const { return config_; }
   // Optional; not owned. Set before the first update().
   void set_stream_sink(MapStreamSink* sink) { stream_sink_ = sink; }
+  // Magnetometer samples and GNSS fixes as they arrive, in time order: each stored keyframe is tagged
+  // with the ones nearest its time (keyframe_sensor_tags.hpp), for relocalization against this run.
+  void add_mag(const hal::MagSample& sample) { sensor_tags_.add_mag(sample); }
+  void add_gnss(const hal::GnssFix& fix) { sensor_tags_.add_gnss(fix); }
 
   LocalMapper(LocalMapper&&) noexcept;
   LocalMapper& operator=(LocalMapper&&) noexcept;
@@ -121,6 +126,7 @@ class LocalMapper {
   uint32_t next_segment_id_ = 0;
   LocalMapperCounters counters_;
   MapStreamSink* stream_sink_ = nullptr;
+  KeyframeSensorTags sensor_tags_;
   int streamed_voxels_ = 0;             // of the active map, in creation order
   std::vector<int> map_size_after_kf_;  // ring: map size after each of the last lag+1 keyframes
   int keyframes_in_segment_ = 0;

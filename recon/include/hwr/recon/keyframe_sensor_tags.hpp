@@ -1,0 +1,68 @@
+#pragma once
+// Magnetometer and GNSS metadata of the stored keyframes (issue #6 item 1: the prior map keeps
+// "GNSS and magnetometer metadata" for relocalization). The robot hands every magnetometer sample
+// and every 3D GNSS fix to the mapper as it arrives; the mapper stores a keyframe a few keyframes
+// later (keyframe_lag), and tags it with the sample nearest its image time, if one lies within the
+// configured gap: the magnetometer field in the IMU frame (relocalization recomputes the heading
+// with the keyframe's attitude, estimation/mag_heading.hpp), the fix's WGS-84 position.
+// Fixed rings allocated at construction; add_*() and tag() never allocate.
+
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+#include "hwr/hal/gnss_fix.hpp"
+#include "hwr/hal/mag_sample.hpp"
+#include "hwr/recon/map_store.hpp"
+
+namespace hwr::recon {
+
+struct KeyframeSensorTagsConfig {
+  int mag_capacity = 512;                 // ~10 s at the ZED 2i's 50 Hz magnetometer
+  int gnss_capacity = 128;                // ~25 s at 5 Hz
+  int64_t max_mag_gap_ns = 50'000'000;    // 50 ms
+  int64_t max_gnss_gap_ns = 500'000'000;  // 0.5 s
+};
+
+class KeyframeSensorTags {
+ public:
+  explicit KeyframeSensorTags(const KeyframeSensorTagsConfig& config = {});
+
+  // Samples in time order (an older or non-finite one is ignored and counted).
+  void add_mag(const hal::MagSample& sample);
+  // Only 3D fixes with a finite position are kept.
+  void add_gnss(const hal::GnssFix& fix);
+  // Sets keyframe->mag_valid / mag_imu_uT and gnss_valid / lat, lon, alt from the samples nearest
+  // keyframe->t_ns within the gaps (valid flags false otherwise).
+  void tag(StoredKeyframe* keyframe) const;
+
+  uint64_t rejected() const { return rejected_; }
+
+ private:
+  template <class T>
+  struct Ring {
+    std::vector<T> items;
+    size_t head = 0, count = 0;
+    void push(const T& v) {
+      const size_t cap = items.size();
+      if (cap == 0) return;
+      items[(head + count) % cap] = v;
+      if (count < cap)
+        ++count;
+      else
+        head = (head + 1) % cap;
+    }
+    const T& at(size_t i) const { return items[(head + i) % items.size()]; }
+    const T* back() const { return count > 0 ? &at(count - 1) : nullptr; }
+  };
+  // The item of `ring` whose t_ns is nearest t_ns, or null when none lies within max_gap_ns.
+  template <class T>
+  static const T* nearest(const Ring<T>& ring, int64_t t_ns, int64_t max_gap_ns);
+
+  KeyframeSensorTagsConfig config_;
+  Ring<hal::MagSample> mag_;
+  Ring<hal::GnssFix> gnss_;
+  uint64_t rejected_ = 0;
+};
+
+}  // namespace hwr::recon

@@ -1,0 +1,68 @@
+#include "hwr/recon/keyframe_sensor_tags.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+
+namespace hwr::recon {
+
+KeyframeSensorTags::KeyframeSensorTags(const KeyframeSensorTagsConfig& config) : config_(config) {
+  mag_.items.resize(static_cast<size_t>(std::max(config.mag_capacity, 1)));
+  gnss_.items.resize(static_cast<size_t>(std::max(config.gnss_capacity, 1)));
+}
+
+void KeyframeSensorTags::add_mag(const hal::MagSample& sample) {
+  const hal::MagSample* last = mag_.back();
+  if (!sample.field_uT.allFinite() || (last != nullptr && sample.t_ns <= last->t_ns)) {
+    ++rejected_;
+    return;
+  }
+  mag_.push(sample);
+}
+
+void KeyframeSensorTags::add_gnss(const hal::GnssFix& fix) {
+  const hal::GnssFix* last = gnss_.back();
+  if (!fix.has_3d_fix() || !std::isfinite(fix.lat_deg) || !std::isfinite(fix.lon_deg) ||
+      !std::isfinite(fix.height_m) || (last != nullptr && fix.t_ns <= last->t_ns)) {
+    ++rejected_;
+    return;
+  }
+  gnss_.push(fix);
+}
+
+template <class T>
+const T* KeyframeSensorTags::nearest(const Ring<T>& ring, int64_t t_ns, int64_t max_gap_ns) {
+  // Times increase along the ring: binary search for the first item at or after t_ns.
+  size_t lo = 0, hi = ring.count;
+  while (lo < hi) {
+    const size_t mid = (lo + hi) / 2;
+    if (ring.at(mid).t_ns < t_ns)
+      lo = mid + 1;
+    else
+      hi = mid;
+  }
+  const T* best = nullptr;
+  int64_t best_gap = max_gap_ns;
+  for (size_t i : {lo - 1, lo}) {  // lo - 1 wraps to SIZE_MAX when lo == 0: skipped below
+    if (i >= ring.count) continue;
+    const int64_t gap = std::llabs(ring.at(i).t_ns - t_ns);
+    if (gap <= best_gap) {
+      best_gap = gap;
+      best = &ring.at(i);
+    }
+  }
+  return best;
+}
+
+void KeyframeSensorTags::tag(StoredKeyframe* keyframe) const {
+  const hal::MagSample* m = nearest(mag_, keyframe->t_ns, config_.max_mag_gap_ns);
+  keyframe->mag_valid = m != nullptr;
+  keyframe->mag_imu_uT = m != nullptr ? m->field_uT : Eigen::Vector3d::Zero();
+  const hal::GnssFix* g = nearest(gnss_, keyframe->t_ns, config_.max_gnss_gap_ns);
+  keyframe->gnss_valid = g != nullptr;
+  keyframe->lat_deg = g != nullptr ? g->lat_deg : 0.0;
+  keyframe->lon_deg = g != nullptr ? g->lon_deg : 0.0;
+  keyframe->alt_m = g != nullptr ? g->height_m : 0.0;
+}
+
+}  // namespace hwr::recon
