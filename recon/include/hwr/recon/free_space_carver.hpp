@@ -1,0 +1,152 @@
+#pragma once
+// Prior-map update by free-space carving (issue #6 item 3): after relocalization, the current
+// depth images are cast as rays against the prior map's points with Embree, and a prior point that
+// the current rays pass through, well in front of the surface they measured, is in observed free
+// space (a moved plate, removed clutter) and is deleted. New geometry is not this class's job: the
+// current keyframe clouds are merged into the map as usual (VoxelMap::insert).
+//
+// Geometry (docs/prior_map_update.md has the figures):
+//  - Every prior point is an Embree sphere of radius point_radius_m: the width of a ray, i.e. how
+//    close a ray must pass a point to say anything about it.
+//  - The ray of pixel (u, v) is d_cam = K^-1 [u v 1]^T = ((u - cx) / fx, (v - cy) / fy, 1) from the
+//    camera centre; with d_cam.z = 1 the ray parameter t is the z-depth, so the measured endpoint is
+//    q_m = o + z_m d.
+//  - The measured surface's normal at q_m comes from the depth image itself: a plane's inverse depth
+//    is affine in the normalised image coordinates (x̄, ȳ) = ((u - cx) / fx, (v - cy) / fy): for the
+//    plane n·X = c, X = z (x̄, ȳ, 1), 1/z = (n_x x̄ + n_y ȳ + n_z) / c. Central differences of 1/z over
+//    ±normal_window_px give n ∝ (∂w/∂x̄, ∂w/∂ȳ, w − x̄ ∂w/∂x̄ − ȳ ∂w/∂ȳ), w = 1/z. A pixel whose
+//    neighbourhood is not planar (second difference of 1/z beyond the noise: a depth edge, a flying
+//    pixel) or whose ray meets the surface at incidence beyond acos(min_cos_incidence) casts nothing.
+//  - A prior point p met by the ray is classified by its signed distance to the measured local
+//    plane, s = n̂·(p − q_m) (n̂ towards the camera), against the free margin and the occupied band
+//        margin = margin_min_m + k_sigma · σ,  band = margin_min_m + k_sigma_occupied · σ,
+//        σ² = (depth_noise_k z² |d|)² + (pose_sigma_m + pose_sigma_rad · r)²
+//    (stereo depth noise grows with z², |d| turns it into range r along the ray; the pose term is
+//    T_prior_cam's uncertainty at that range; margin_min_m is the prior map's own noise):
+//        free      s > margin and the point is more than margin before q_m along the ray,
+//        occupied  |s| <= band (the current surface confirms it),
+//        no vote   band < |s| <= margin (a 1 cm plate seen from 2 m: too close to the noise to say),
+//        ignored   s < −margin (behind the measured surface: occluded, never evidence of absence).
+//    The plane, not the range along the ray, is what makes grazing rays safe: a ray meeting the floor
+//    at 10° passes within point_radius_m of floor points up to point_radius_m / sin(10°) ≈ 6 radii
+//    before its endpoint, but those points lie on the measured plane (s ≈ 0) and vote occupied.
+//  - Point i is deleted when free_i >= min_free_hits and free_i > free_ratio · occupied_i: one
+//    noisy ray cannot delete a point, and a point the current run also sees is kept.
+//  - Pose check: votes average out depth noise but not an error of T_prior_cam, which offsets every
+//    ray of a frame alike (1 cm of error erodes 18 % of the lab test's floor). Before voting, a
+//    sparse pass (every bias_check_subsample-th sampled pixel) histograms s of the prior points within
+//    bias_window_m of the measured planes; a frame whose median s exceeds max_surface_bias_m (a
+//    translation along the dominant normal) or whose interquartile range exceeds max_iqr_to_margin
+//    times the mean margin (a rotation: s grows across the image) casts no votes (misaligned).
+//    Quartiles resist the changed geometry inside the window as long as it is the minority.
+
+// Embree: one RTC_GEOMETRY_TYPE_SPHERE_POINT geometry over a buffer sized at create(); every hit
+// along a ray is classified in an intersection filter callback that then rejects it, so one BVH
+// traversal per ray visits every sphere the ray crosses in [0, tfar] (rtcOccluded1 / re-cast loops
+// would restart the traversal at every hit). A sphere may be reported twice by one ray (entry and
+// exit); a per-point ray stamp counts it once. observe() allocates nothing; set_prior() rebuilds the
+// BVH (Embree allocates there).
+
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include <Eigen/Geometry>
+#include <opencv2/core/mat.hpp>
+
+#include "hwr/core/status.hpp"
+#include "hwr/hal/pinhole_camera.hpp"
+#include "hwr/recon/keyframe_cloud.hpp"
+
+namespace hwr::recon {
+
+struct FreeSpaceCarverConfig {
+  float point_radius_m = 0.005f;  // a quarter of the 2 cm map voxel
+  float min_depth_m = 0.2f;       // pixels outside [min, max] cast nothing
+  float max_depth_m = 4.0f;       // sigma_z(4 m) = 16 mm: beyond, a 1 cm plate is below the noise
+  float depth_noise_k = 0.001f;   // sigma_z = k z² (1/m), ZED-like stereo
+  float k_sigma = 2.0f;           // free beyond this many depth sigmas (the vote absorbs the 2.3 % tail)
+  float k_sigma_occupied = 1.0f;  // occupied within this many (<= k_sigma); between the two: no vote
+  float margin_min_m = 0.003f;    // the prior map's own noise (its voxel means)
+  // Uncertainty of T_prior_cam (the relocalization refined locally against the prior, e.g. NDT of
+  // the keyframe cloud): sigma_pose(r) = pose_sigma_m + pose_sigma_rad r at range r. The pose check
+  // below rejects frames with larger errors; these cover what passes under its thresholds.
+  float pose_sigma_m = 0.001f;
+  float pose_sigma_rad = 0.0005f;  // 0.03°
+  int normal_window_px = 2;        // central differences over ±this many pixels
+  float planarity_sigmas = 4.0f;   // second difference of 1/z allowed, in its noise sigmas
+  float planarity_rel = 0.01f;     // ... plus this fraction of 1/z (curved surfaces, zero noise)
+  float min_cos_incidence = 0.1f;  // rays meeting the surface beyond ~84° from its normal cast nothing
+  int min_free_hits = 2;
+  float free_ratio = 1.0f;
+  // Pose check: a frame whose near-surface residual (median s over pairs with |s| < bias_window_m,
+  // from a pass over every bias_check_subsample-th sampled pixel) is beyond max_surface_bias_m
+  // casts no votes. Frames with fewer than min_bias_pairs such pairs cannot be checked and do vote.
+  // bias_check_subsample = 0 turns the check off.
+  float max_surface_bias_m = 0.002f;
+  float bias_window_m = 0.05f;
+  float max_iqr_to_margin = 0.6f;  // ... or whose interquartile range of s exceeds this times the mean margin
+  int bias_check_subsample = 4;
+  int min_bias_pairs = 200;
+};
+
+struct FreeSpaceObserveStats {
+  // Counters of the voting pass (all 0 when the frame is misaligned).
+  int pixels = 0;          // pixels visited (every stride-th in u and v)
+  int invalid = 0;         // depth 0 / NaN / inf
+  int out_of_range = 0;    // outside [min_depth_m, max_depth_m]
+  int not_planar = 0;      // neighbourhood invalid, off the image, or not planar (edges)
+  int grazing = 0;         // incidence beyond acos(min_cos_incidence)
+  int rays = 0;            // rays cast
+  int64_t free_votes = 0;  // point-ray pairs classified free
+  int64_t occupied_votes = 0;
+  // The pose check (0 when it is off or the prior is empty): pairs with |s| < bias_window_m and
+  // their median height above the measured planes (0.5 mm bins); far from 0: T_prior_cam is off.
+  bool bias_checked = false;  // the check pass found >= min_bias_pairs pairs
+  bool misaligned = false;    // ... and their median exceeded max_surface_bias_m: nothing voted
+  int64_t surface_pairs = 0;
+  float surface_median_m = 0;
+  float surface_iqr_m = 0;     // interquartile range
+  float surface_margin_m = 0;  // mean free margin of those pairs
+};
+
+class FreeSpaceCarver {
+ public:
+  // Errors (kInvalidArgument): non-positive or non-finite config values, min_depth_m >= max_depth_m,
+  // max_points < 0, free_ratio < 0; (kUnavailable): Embree cannot create its device.
+  static core::Expected<FreeSpaceCarver> create(const FreeSpaceCarverConfig& config, int max_points);
+  FreeSpaceCarver(FreeSpaceCarver&&) noexcept;
+  FreeSpaceCarver& operator=(FreeSpaceCarver&&) noexcept;
+  ~FreeSpaceCarver();
+
+  // Copies the prior points (in the prior map's frame), zeroes the counters and builds the BVH.
+  // n == 0 is a valid empty prior. Errors: (kOutOfRange) n > max_points; (kInvalidArgument)
+  // points_prior null with n > 0, n < 0, a non-finite point (its index is named).
+  core::Status set_prior(const CloudPoint* points_prior, int n);
+
+  // Casts every stride_px-th valid pixel of depth_m (CV_32FC1, metres, K's size; 0/NaN/inf
+  // invalid) from T_prior_cam and updates the counters. Errors (kInvalidArgument): wrong type or
+  // size, invalid intrinsics, stride_px < 1, T_prior_cam not a finite rigid transform.
+  core::Expected<FreeSpaceObserveStats> observe(const cv::Mat& depth_m, const hal::PinholeIntrinsics& K,
+                                                const Eigen::Isometry3d& T_prior_cam, int stride_px);
+
+  int prior_size() const;
+  int capacity() const;
+  const FreeSpaceCarverConfig& config() const;
+  uint16_t free_hits(int i) const;      // saturating
+  uint16_t occupied_hits(int i) const;  // saturating
+  bool deleted(int i) const;
+  int deleted_count() const;
+
+  // Removes the deleted points from points_prior (stable order) and returns how many went.
+  // points_prior must be the array given to set_prior() (same size: kInvalidArgument otherwise).
+  // The carver keeps its counters; call set_prior() with the result to carve further.
+  core::Expected<int> apply(std::vector<CloudPoint>* points_prior) const;
+
+ private:
+  struct Impl;
+  explicit FreeSpaceCarver(std::unique_ptr<Impl> impl);
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace hwr::recon

@@ -1,0 +1,460 @@
+// Free-space carving of the prior map (issue #6 item 3); the method is in free_space_carver.hpp.
+
+#include "hwr/recon/free_space_carver.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstddef>
+#include <limits>
+#include <string>
+
+#include <embree3/rtcore.h>
+
+#if defined(__SSE__)
+#include <xmmintrin.h>
+#endif
+
+namespace hwr::recon {
+namespace {
+
+// Embree wants flush-to-zero and denormals-are-zero while it traverses; set them for one call.
+class ScopedFlushDenormals {
+ public:
+#if defined(__SSE__)
+  ScopedFlushDenormals() : saved_(_mm_getcsr()) { _mm_setcsr(saved_ | 0x8040u); }
+  ~ScopedFlushDenormals() { _mm_setcsr(saved_); }
+
+ private:
+  unsigned saved_;
+#endif
+};
+
+bool is_rigid(const Eigen::Isometry3d& T) {
+  if (!T.matrix().allFinite()) return false;
+  const Eigen::Matrix3d R = T.linear();
+  return (R.transpose() * R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() < 1e-6 &&
+         R.determinant() > 0.0;
+}
+
+bool positive_finite(float x) { return std::isfinite(x) && x > 0.0f; }
+
+// Inverse depth of a pixel, or 0 when the pixel is off the image or invalid.
+inline float inverse_depth(const cv::Mat& depth_m, int u, int v) {
+  if (u < 0 || v < 0 || u >= depth_m.cols || v >= depth_m.rows) return 0.0f;
+  const float z = depth_m.ptr<float>(v)[u];
+  return (std::isfinite(z) && z > 0.0f) ? 1.0f / z : 0.0f;
+}
+
+}  // namespace
+
+struct FreeSpaceCarver::Impl {
+  static constexpr int kBiasBins = 200;
+
+  // The ray being cast, handed to the filter through Embree's context (the RTCIntersectContext must
+  // be the first member: Embree passes its address back).
+  struct RayContext {
+    RTCIntersectContext embree;
+    Impl* self = nullptr;
+    Eigen::Vector3f o, d, q, n;  // origin, direction (d_cam.z = 1), measured endpoint, unit normal to camera
+    float d_norm = 0;            // |d|
+    float margin_m = 0;          // free beyond this height above the measured plane
+    float occupied_band_m = 0;   // occupied within ± this
+    uint32_t stamp = 0;
+    bool vote = true;
+    int64_t free_votes = 0, occupied_votes = 0;
+    // Check pass: histogram of s over [-bias_window_m, bias_window_m] (kBiasBins bins).
+    float bias_window_m = 0;
+    int64_t surface_pairs = 0;
+    double margin_sum_m = 0;  // of those pairs' free margins
+    std::array<uint32_t, kBiasBins> bias_hist{};
+  };
+
+  FreeSpaceCarverConfig config;
+  int max_points = 0;
+  int n = 0;
+  RTCDevice device = nullptr;
+  RTCScene scene = nullptr;
+  std::vector<float> spheres;  // x y z radius per point, +1 element of padding (Embree's SSE loads)
+  std::vector<uint32_t> stamps;
+  std::vector<uint16_t> free_hits, occupied_hits;
+  uint32_t ray_id = 0;
+  std::string error;
+
+  ~Impl() {
+    if (scene) rtcReleaseScene(scene);
+    if (device) rtcReleaseDevice(device);
+  }
+
+  static void on_error(void* user, RTCError code, const char* message) {
+    auto* self = static_cast<Impl*>(user);
+    if (self->error.empty()) self->error = "Embree error " + std::to_string(code) + ": " + message;
+  }
+
+  static void bump(uint16_t* c) {
+    if (*c != std::numeric_limits<uint16_t>::max()) ++*c;
+  }
+
+  // Every sphere the ray meets in [tnear, tfar] arrives here; it is classified against the measured
+  // plane (header: free / occupied / ignored) and rejected so that traversal goes on.
+  static void filter(const RTCFilterFunctionNArguments* args) {
+    auto* rc = reinterpret_cast<RayContext*>(args->context);
+    Impl* self = rc->self;
+    for (unsigned k = 0; k < args->N; ++k) {
+      if (args->valid[k] == 0) continue;
+      args->valid[k] = 0;
+      const unsigned prim = RTCHitN_primID(args->hit, args->N, k);
+      if (self->stamps[prim] == rc->stamp) continue;  // the sphere's exit hit of the same ray
+      self->stamps[prim] = rc->stamp;
+      const Eigen::Map<const Eigen::Vector3f> p(&self->spheres[4 * static_cast<size_t>(prim)]);
+      const Eigen::Vector3f q_to_p = p - rc->q;
+      const float s = rc->n.dot(q_to_p);  // height above the measured plane, towards the camera
+      if (!rc->vote) {
+        if (std::abs(s) < rc->bias_window_m) {
+          const int bin = static_cast<int>((s + rc->bias_window_m) / (2.0f * rc->bias_window_m) * kBiasBins);
+          ++rc->bias_hist[static_cast<size_t>(std::clamp(bin, 0, kBiasBins - 1))];
+          ++rc->surface_pairs;
+          rc->margin_sum_m += rc->margin_m;
+        }
+        continue;
+      }
+      if (s > rc->margin_m) {
+        // Range before the endpoint along the ray: -(q_to_p . d) / |d|.
+        if (-q_to_p.dot(rc->d) / rc->d_norm > rc->margin_m) {
+          bump(&self->free_hits[prim]);
+          ++rc->free_votes;
+        }
+      } else if (std::abs(s) <= rc->occupied_band_m) {
+        bump(&self->occupied_hits[prim]);
+        ++rc->occupied_votes;
+      }
+    }
+  }
+
+  // The q-quantile of the check pass's histogram of s (bin centre).
+  static float quantile(const RayContext& rc, double q, float window_m) {
+    const double target = q * static_cast<double>(rc.surface_pairs);
+    int64_t below = 0;
+    int bin = 0;
+    while (bin < kBiasBins - 1 &&
+           static_cast<double>(below + rc.bias_hist[static_cast<size_t>(bin)]) <= target) {
+      below += rc.bias_hist[static_cast<size_t>(bin)];
+      ++bin;
+    }
+    return (2.0f * (static_cast<float>(bin) + 0.5f) / kBiasBins - 1.0f) * window_m;
+  }
+
+  // Casts every stride_px-th pixel's ray (header); with vote false only the near-surface residual
+  // is measured.
+  void cast(const cv::Mat& depth_m, const hal::PinholeIntrinsics& K, const Eigen::Isometry3d& T_prior_cam,
+            int stride_px, bool vote, RayContext* rc_out, FreeSpaceObserveStats* stats_out) {
+    const Eigen::Matrix3f R = T_prior_cam.linear().cast<float>();
+    const Eigen::Vector3f o = T_prior_cam.translation().cast<float>();
+    const FreeSpaceCarverConfig& c = config;
+    const int h = c.normal_window_px;
+    const float fx = static_cast<float>(K.fx), fy = static_cast<float>(K.fy);
+    const float cx = static_cast<float>(K.cx), cy = static_cast<float>(K.cy);
+    // 1/z has noise sigma_z / z² = depth_noise_k at every depth; its second difference sqrt(6) times that.
+    const float planarity_abs = c.planarity_sigmas * std::sqrt(6.0f) * c.depth_noise_k;
+
+    RayContext& rc = *rc_out;
+    rtcInitIntersectContext(&rc.embree);
+    rc.self = this;
+    rc.o = o;
+    rc.vote = vote;
+    rc.bias_window_m = config.bias_window_m;
+    FreeSpaceObserveStats& stats = *stats_out;
+    for (int v = 0; v < depth_m.rows; v += stride_px) {
+      const float* row = depth_m.ptr<float>(v);
+      for (int u = 0; u < depth_m.cols; u += stride_px) {
+        ++stats.pixels;
+        const float z = row[u];
+        if (!std::isfinite(z) || z <= 0.0f) {
+          ++stats.invalid;
+          continue;
+        }
+        if (z < c.min_depth_m || z > c.max_depth_m) {
+          ++stats.out_of_range;
+          continue;
+        }
+        // Local plane from the inverse depths of the 4 neighbours at ±h (header).
+        const float w = 1.0f / z;
+        const float wl = inverse_depth(depth_m, u - h, v), wr = inverse_depth(depth_m, u + h, v);
+        const float wu = inverse_depth(depth_m, u, v - h), wd = inverse_depth(depth_m, u, v + h);
+        const float tol = planarity_abs + c.planarity_rel * w;
+        if (wl == 0.0f || wr == 0.0f || wu == 0.0f || wd == 0.0f || std::abs(wl + wr - 2.0f * w) > tol ||
+            std::abs(wu + wd - 2.0f * w) > tol) {
+          ++stats.not_planar;
+          continue;
+        }
+        const float xb = (static_cast<float>(u) - cx) / fx, yb = (static_cast<float>(v) - cy) / fy;
+        const float gx = (wr - wl) * fx / (2.0f * static_cast<float>(h));
+        const float gy = (wd - wu) * fy / (2.0f * static_cast<float>(h));
+        const Eigen::Vector3f n_over_c(gx, gy, w - xb * gx - yb * gy);  // plane n.X = c, pointing away
+        const Eigen::Vector3f d_cam(xb, yb, 1.0f);
+        const float d_norm = d_cam.norm();
+        const float cos_inc = n_over_c.dot(d_cam) / (n_over_c.norm() * d_norm);
+        if (!(cos_inc >= c.min_cos_incidence)) {
+          ++stats.grazing;
+          continue;
+        }
+        // Range noise of the endpoint and the pose's uncertainty at this range, in quadrature.
+        const float range_m = z * d_norm;
+        const float sigma_range_m = c.depth_noise_k * z * z * d_norm;
+        const float sigma_pose_m = c.pose_sigma_m + c.pose_sigma_rad * range_m;
+        const float sigma_m = std::sqrt(sigma_range_m * sigma_range_m + sigma_pose_m * sigma_pose_m);
+        const float margin = c.margin_min_m + c.k_sigma * sigma_m;
+        rc.d = R * d_cam;
+        rc.n = -(R * n_over_c).normalized();
+        rc.q = o + z * rc.d;
+        rc.d_norm = d_norm;
+        rc.margin_m = margin;
+        rc.occupied_band_m = c.margin_min_m + c.k_sigma_occupied * sigma_m;
+        ++stats.rays;
+        if (n == 0) continue;
+        if (++ray_id == 0) {  // wrapped after 2^32 rays: old stamps could collide
+          std::fill_n(stamps.begin(), n, 0u);
+          ray_id = 1;
+        }
+        rc.stamp = ray_id;
+
+        RTCRayHit rh;
+        rh.ray.org_x = o.x();
+        rh.ray.org_y = o.y();
+        rh.ray.org_z = o.z();
+        rh.ray.dir_x = rc.d.x();
+        rh.ray.dir_y = rc.d.y();
+        rh.ray.dir_z = rc.d.z();
+        rh.ray.tnear = 0.0f;
+        // Past the endpoint only points on the measured plane matter (occupied): at incidence cos_inc
+        // the ray stays within margin + radius of the plane for that range divided by cos_inc.
+        const float behind_m = vote ? margin : std::max(margin, c.bias_window_m);
+        rh.ray.tfar = z + (behind_m + c.point_radius_m) / (d_norm * cos_inc);
+        rh.ray.time = 0.0f;
+        rh.ray.mask = 0xFFFFFFFFu;
+        rh.ray.id = 0;
+        rh.ray.flags = 0;
+        rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+        rh.hit.primID = RTC_INVALID_GEOMETRY_ID;
+        rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+        rtcIntersect1(scene, &rc.embree, &rh);
+      }
+    }
+  }
+
+  core::Status embree_status(const char* what) {
+    if (error.empty()) return core::Status::Ok();
+    core::Status st = core::Internal(std::string(what) + ": " + error);
+    error.clear();
+    return st;
+  }
+};
+
+FreeSpaceCarver::FreeSpaceCarver(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+FreeSpaceCarver::FreeSpaceCarver(FreeSpaceCarver&&) noexcept = default;
+FreeSpaceCarver& FreeSpaceCarver::operator=(FreeSpaceCarver&&) noexcept = default;
+FreeSpaceCarver::~FreeSpaceCarver() = default;
+
+core::Expected<FreeSpaceCarver> FreeSpaceCarver::create(const FreeSpaceCarverConfig& c, int max_points) {
+  if (!positive_finite(c.point_radius_m) || !positive_finite(c.min_depth_m) ||
+      !positive_finite(c.max_depth_m) || c.min_depth_m >= c.max_depth_m) {
+    return core::InvalidArgument(
+        "free-space carver: point_radius_m, min_depth_m and max_depth_m must be positive and finite with "
+        "min_depth_m < max_depth_m (got " +
+        std::to_string(c.point_radius_m) + ", " + std::to_string(c.min_depth_m) + ", " +
+        std::to_string(c.max_depth_m) + ")");
+  }
+  if (!(std::isfinite(c.depth_noise_k) && c.depth_noise_k >= 0) ||
+      !(std::isfinite(c.k_sigma) && c.k_sigma >= 0) ||
+      !(std::isfinite(c.margin_min_m) && c.margin_min_m >= 0) ||
+      !(std::isfinite(c.pose_sigma_m) && c.pose_sigma_m >= 0) ||
+      !(std::isfinite(c.pose_sigma_rad) && c.pose_sigma_rad >= 0) ||
+      !(std::isfinite(c.k_sigma_occupied) && c.k_sigma_occupied >= 0 && c.k_sigma_occupied <= c.k_sigma) ||
+      !(std::isfinite(c.planarity_sigmas) && c.planarity_sigmas >= 0) ||
+      !(std::isfinite(c.planarity_rel) && c.planarity_rel >= 0) ||
+      !(std::isfinite(c.free_ratio) && c.free_ratio >= 0)) {
+    return core::InvalidArgument(
+        "free-space carver: depth_noise_k, k_sigma, margin_min_m, pose_sigma_m, pose_sigma_rad, "
+        "planarity_sigmas, "
+        "planarity_rel and free_ratio "
+        "must be finite and >= 0, and 0 <= k_sigma_occupied <= k_sigma");
+  }
+  if (!(c.min_cos_incidence > 0.0f && c.min_cos_incidence <= 1.0f)) {
+    return core::InvalidArgument("free-space carver: min_cos_incidence must be in (0, 1] (got " +
+                                 std::to_string(c.min_cos_incidence) + ")");
+  }
+  if (!(std::isfinite(c.max_surface_bias_m) && c.max_surface_bias_m > 0) ||
+      !(std::isfinite(c.bias_window_m) && c.bias_window_m > c.max_surface_bias_m) ||
+      !(std::isfinite(c.max_iqr_to_margin) && c.max_iqr_to_margin > 0) || c.bias_check_subsample < 0 ||
+      c.min_bias_pairs < 1) {
+    return core::InvalidArgument(
+        "free-space carver: max_surface_bias_m and max_iqr_to_margin must be > 0, bias_window_m > "
+        "max_surface_bias_m, "
+        "bias_check_subsample >= 0 and min_bias_pairs >= "
+        "1");
+  }
+  if (c.normal_window_px < 1 || c.min_free_hits < 1) {
+    return core::InvalidArgument("free-space carver: normal_window_px and min_free_hits must be >= 1 (got " +
+                                 std::to_string(c.normal_window_px) + ", " + std::to_string(c.min_free_hits) +
+                                 ")");
+  }
+  if (max_points < 0) {
+    return core::InvalidArgument("free-space carver: max_points must be >= 0 (got " +
+                                 std::to_string(max_points) + ")");
+  }
+  auto impl = std::make_unique<Impl>();
+  impl->config = c;
+  impl->max_points = max_points;
+  impl->device = rtcNewDevice(nullptr);
+  if (!impl->device) {
+    return core::Unavailable("free-space carver: cannot create the Embree device (error " +
+                             std::to_string(rtcGetDeviceError(nullptr)) + ")");
+  }
+  rtcSetDeviceErrorFunction(impl->device, &Impl::on_error, impl.get());
+  const size_t cap = static_cast<size_t>(max_points);
+  impl->spheres.assign(4 * (cap + 1), 0.0f);
+  impl->stamps.assign(cap, 0);
+  impl->free_hits.assign(cap, 0);
+  impl->occupied_hits.assign(cap, 0);
+  return FreeSpaceCarver(std::move(impl));
+}
+
+core::Status FreeSpaceCarver::set_prior(const CloudPoint* points_prior, int n) {
+  Impl& m = *impl_;
+  if (n < 0 || (n > 0 && points_prior == nullptr)) {
+    return core::InvalidArgument(
+        "free-space carver: set_prior needs n >= 0 points and a non-null array (n = " + std::to_string(n) +
+        ")");
+  }
+  if (n > m.max_points) {
+    return core::OutOfRange("free-space carver: prior has " + std::to_string(n) + " points, capacity is " +
+                            std::to_string(m.max_points) + " (raise max_points at create())");
+  }
+  for (int i = 0; i < n; ++i) {
+    const CloudPoint& p = points_prior[i];
+    if (!std::isfinite(p.x_m) || !std::isfinite(p.y_m) || !std::isfinite(p.z_m)) {
+      return core::InvalidArgument("free-space carver: prior point " + std::to_string(i) + " is not finite");
+    }
+  }
+  if (m.scene) {
+    rtcReleaseScene(m.scene);
+    m.scene = nullptr;
+  }
+  m.n = 0;
+  for (int i = 0; i < n; ++i) {
+    float* s = &m.spheres[4 * static_cast<size_t>(i)];
+    s[0] = points_prior[i].x_m;
+    s[1] = points_prior[i].y_m;
+    s[2] = points_prior[i].z_m;
+    s[3] = m.config.point_radius_m;
+  }
+  std::fill_n(m.stamps.begin(), n, 0u);
+  std::fill_n(m.free_hits.begin(), n, uint16_t{0});
+  std::fill_n(m.occupied_hits.begin(), n, uint16_t{0});
+  m.ray_id = 0;
+
+  m.scene = rtcNewScene(m.device);
+  if (n > 0) {
+    RTCGeometry geom = rtcNewGeometry(m.device, RTC_GEOMETRY_TYPE_SPHERE_POINT);
+    rtcSetSharedGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT4, m.spheres.data(), 0,
+                               4 * sizeof(float), static_cast<size_t>(n));
+    rtcSetGeometryIntersectFilterFunction(geom, &Impl::filter);
+    rtcCommitGeometry(geom);
+    rtcAttachGeometry(m.scene, geom);
+    rtcReleaseGeometry(geom);
+  }
+  rtcCommitScene(m.scene);
+  HWR_RETURN_IF_ERROR(m.embree_status("free-space carver: building the prior's BVH"));
+  m.n = n;
+  return core::Status::Ok();
+}
+
+core::Expected<FreeSpaceObserveStats> FreeSpaceCarver::observe(const cv::Mat& depth_m,
+                                                               const hal::PinholeIntrinsics& K,
+                                                               const Eigen::Isometry3d& T_prior_cam,
+                                                               int stride_px) {
+  Impl& m = *impl_;
+  const FreeSpaceCarverConfig& c = m.config;
+  if (!K.valid()) return core::InvalidArgument("free-space carver: invalid intrinsics");
+  if (depth_m.type() != CV_32FC1 || depth_m.cols != K.width || depth_m.rows != K.height) {
+    return core::InvalidArgument("free-space carver: depth must be CV_32FC1 of " + std::to_string(K.width) +
+                                 "x" + std::to_string(K.height) + " (got type " +
+                                 std::to_string(depth_m.type()) + ", " + std::to_string(depth_m.cols) + "x" +
+                                 std::to_string(depth_m.rows) + ")");
+  }
+  if (stride_px < 1) {
+    return core::InvalidArgument("free-space carver: stride_px must be >= 1 (got " +
+                                 std::to_string(stride_px) + ")");
+  }
+  if (!is_rigid(T_prior_cam)) {
+    return core::InvalidArgument(
+        "free-space carver: T_prior_cam is not a finite rigid transform (rotation must be orthonormal)");
+  }
+  if (m.scene == nullptr) {
+    return core::InvalidArgument("free-space carver: observe() before set_prior()");
+  }
+
+  ScopedFlushDenormals ftz;
+  FreeSpaceObserveStats stats;
+  Impl::RayContext check;
+  if (m.n > 0 && c.bias_check_subsample > 0) {
+    // Pose check first (header): a sparse pass that only measures the near-surface residual.
+    FreeSpaceObserveStats ignored;
+    m.cast(depth_m, K, T_prior_cam, stride_px * c.bias_check_subsample, /*vote=*/false, &check, &ignored);
+    stats.surface_pairs = check.surface_pairs;
+    if (check.surface_pairs > 0) {
+      // Quartiles of s from the histogram (bin centres): robust to the changed geometry in the window.
+      stats.surface_median_m = Impl::quantile(check, 0.5, c.bias_window_m);
+      stats.surface_iqr_m =
+          Impl::quantile(check, 0.75, c.bias_window_m) - Impl::quantile(check, 0.25, c.bias_window_m);
+      stats.surface_margin_m =
+          static_cast<float>(check.margin_sum_m / static_cast<double>(check.surface_pairs));
+    }
+    stats.bias_checked = check.surface_pairs >= c.min_bias_pairs;
+    stats.misaligned =
+        stats.bias_checked && (std::abs(stats.surface_median_m) > c.max_surface_bias_m ||
+                               stats.surface_iqr_m > c.max_iqr_to_margin * stats.surface_margin_m);
+  }
+  Impl::RayContext rc;
+  if (!stats.misaligned) m.cast(depth_m, K, T_prior_cam, stride_px, /*vote=*/true, &rc, &stats);
+  stats.free_votes = rc.free_votes;
+  stats.occupied_votes = rc.occupied_votes;
+  HWR_RETURN_IF_ERROR(m.embree_status("free-space carver: casting rays"));
+  return stats;
+}
+
+int FreeSpaceCarver::prior_size() const { return impl_->n; }
+int FreeSpaceCarver::capacity() const { return impl_->max_points; }
+const FreeSpaceCarverConfig& FreeSpaceCarver::config() const { return impl_->config; }
+uint16_t FreeSpaceCarver::free_hits(int i) const { return impl_->free_hits[static_cast<size_t>(i)]; }
+uint16_t FreeSpaceCarver::occupied_hits(int i) const { return impl_->occupied_hits[static_cast<size_t>(i)]; }
+
+bool FreeSpaceCarver::deleted(int i) const {
+  const float f = impl_->free_hits[static_cast<size_t>(i)];
+  const float occ = impl_->occupied_hits[static_cast<size_t>(i)];
+  return f >= static_cast<float>(impl_->config.min_free_hits) && f > impl_->config.free_ratio * occ;
+}
+
+int FreeSpaceCarver::deleted_count() const {
+  int count = 0;
+  for (int i = 0; i < impl_->n; ++i) count += deleted(i) ? 1 : 0;
+  return count;
+}
+
+core::Expected<int> FreeSpaceCarver::apply(std::vector<CloudPoint>* points_prior) const {
+  if (points_prior == nullptr || points_prior->size() != static_cast<size_t>(impl_->n)) {
+    return core::InvalidArgument("free-space carver: apply() needs the " + std::to_string(impl_->n) +
+                                 " points given to set_prior() (got " +
+                                 (points_prior ? std::to_string(points_prior->size()) : std::string("null")) +
+                                 ")");
+  }
+  size_t kept = 0;
+  for (int i = 0; i < impl_->n; ++i) {
+    if (!deleted(i)) (*points_prior)[kept++] = (*points_prior)[static_cast<size_t>(i)];
+  }
+  const int removed = impl_->n - static_cast<int>(kept);
+  points_prior->resize(kept);
+  return removed;
+}
+
+}  // namespace hwr::recon

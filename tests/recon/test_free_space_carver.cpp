@@ -1,0 +1,528 @@
+// Free-space carving of the prior map (issue #6 item 3). Oracles: scenes of axis-aligned boxes
+// whose depth images are exact ray-box intersections (plus stereo-like noise sigma = 0.001 z² and
+// invalid pixels); which prior points are gone, static or occluded is known from the geometry.
+// Acceptance: a plate moved between runs disappears from its old place and appears at its new
+// place in the updated map; static geometry loses <= 1 % of its points, at grazing incidence too.
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <functional>
+#include <limits>
+#include <random>
+#include <tuple>
+#include <vector>
+
+#include <gtest/gtest.h>
+#include <opencv2/core.hpp>
+
+#include "hwr/core/alloc_counter.hpp"
+#include "hwr/core/arena.hpp"
+#include "hwr/recon/free_space_carver.hpp"
+#include "hwr/recon/keyframe_cloud.hpp"
+#include "hwr/recon/voxel_map.hpp"
+
+namespace hwr::recon {
+namespace {
+
+constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
+constexpr double kSpacing_m = 0.02;     // the prior map's point spacing (2 cm voxels)
+constexpr double kPlateThick_m = 0.01;  // the project's weld plates
+constexpr double kDepthNoiseK = 0.001;  // sigma_z = k z²
+
+struct Box {
+  Eigen::Vector3d lo, hi;
+};
+
+// Slab test: entry distance along d of the ray o + t d into the box, or +inf.
+double ray_box(const Eigen::Vector3d& o, const Eigen::Vector3d& d, const Box& b) {
+  double t0 = 0.0, t1 = std::numeric_limits<double>::infinity();
+  for (int a = 0; a < 3; ++a) {
+    if (std::abs(d[a]) < 1e-15) {
+      if (o[a] < b.lo[a] || o[a] > b.hi[a]) return std::numeric_limits<double>::infinity();
+      continue;
+    }
+    double ta = (b.lo[a] - o[a]) / d[a], tb = (b.hi[a] - o[a]) / d[a];
+    if (ta > tb) std::swap(ta, tb);
+    t0 = std::max(t0, ta);
+    t1 = std::min(t1, tb);
+    if (t0 > t1) return std::numeric_limits<double>::infinity();
+  }
+  return t0;
+}
+
+// Depth image of the boxes: with d_cam.z = 1 the ray parameter is the z-depth. Gaussian noise
+// sigma = kDepthNoiseK z² and a fraction of NaN pixels; nothing hit -> 0 (invalid).
+cv::Mat render_depth(const std::vector<Box>& scene, const hal::PinholeIntrinsics& K,
+                     const Eigen::Isometry3d& T_world_cam, double nan_fraction, std::mt19937* rng) {
+  cv::Mat depth(K.height, K.width, CV_32FC1);
+  std::normal_distribution<double> gauss(0.0, 1.0);
+  std::uniform_real_distribution<double> uni(0.0, 1.0);
+  const Eigen::Vector3d o = T_world_cam.translation();
+  for (int v = 0; v < K.height; ++v) {
+    for (int u = 0; u < K.width; ++u) {
+      const Eigen::Vector3d d =
+          T_world_cam.linear() * Eigen::Vector3d((u - K.cx) / K.fx, (v - K.cy) / K.fy, 1.0);
+      double z = std::numeric_limits<double>::infinity();
+      for (const Box& b : scene) z = std::min(z, ray_box(o, d, b));
+      const double noise = gauss(*rng) * kDepthNoiseK * z * z;
+      float out = std::isfinite(z) ? static_cast<float>(z + noise) : 0.0f;
+      if (uni(*rng) < nan_fraction) out = kNaN;
+      depth.at<float>(v, u) = out;
+    }
+  }
+  return depth;
+}
+
+Eigen::Isometry3d look_at(const Eigen::Vector3d& eye, const Eigen::Vector3d& target) {
+  const Eigen::Vector3d z = (target - eye).normalized();
+  const Eigen::Vector3d x = z.cross(Eigen::Vector3d::UnitZ()).normalized();  // world z is up
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear().col(0) = x;
+  T.linear().col(1) = z.cross(x);  // image y points down
+  T.linear().col(2) = z;
+  T.translation() = eye;
+  return T;
+}
+
+hal::PinholeIntrinsics camera(int width, int height, double f) {
+  hal::PinholeIntrinsics K;
+  K.width = width;
+  K.height = height;
+  K.fx = K.fy = f;
+  K.cx = (width - 1) / 2.0;
+  K.cy = (height - 1) / 2.0;
+  return K;
+}
+
+enum class Label : uint8_t { kStatic, kGone, kKeptPlate, kOccluded, kSkip };
+
+struct Prior {
+  std::vector<CloudPoint> points;
+  std::vector<Label> labels;
+};
+
+// Points on a 2 cm grid over an axis-aligned rectangle (axis `fixed` at `value`), 1 mm noise.
+void add_grid(int fixed, double value, Eigen::Vector2d lo, Eigen::Vector2d hi, std::mt19937* rng,
+              Prior* prior, const std::function<Label(const Eigen::Vector3d&)>& label) {
+  std::normal_distribution<double> noise(0.0, 0.001);
+  const int a = (fixed + 1) % 3, b = (fixed + 2) % 3;
+  const int na = static_cast<int>(std::floor((hi[0] - lo[0]) / kSpacing_m + 1e-9));
+  const int nb = static_cast<int>(std::floor((hi[1] - lo[1]) / kSpacing_m + 1e-9));
+  for (int i = 0; i <= na; ++i) {
+    for (int j = 0; j <= nb; ++j) {
+      Eigen::Vector3d p;
+      p[fixed] = value;
+      p[a] = lo[0] + i * kSpacing_m;
+      p[b] = lo[1] + j * kSpacing_m;
+      const Label l = label(p);
+      if (l == Label::kSkip) continue;
+      CloudPoint c;
+      c.x_m = static_cast<float>(p.x() + noise(*rng));
+      c.y_m = static_cast<float>(p.y() + noise(*rng));
+      c.z_m = static_cast<float>(p.z() + noise(*rng));
+      prior->points.push_back(c);
+      prior->labels.push_back(l);
+    }
+  }
+}
+
+bool inside_xy(const Eigen::Vector3d& p, const Box& b, double grow) {
+  return p.x() >= b.lo.x() - grow && p.x() <= b.hi.x() + grow && p.y() >= b.lo.y() - grow &&
+         p.y() <= b.hi.y() + grow;
+}
+
+struct Tally {
+  int total = 0, observed = 0, deleted = 0;
+  double pct(int n) const { return n > 0 ? 100.0 * deleted / n : 0.0; }
+};
+
+Tally tally(const FreeSpaceCarver& carver, const Prior& prior, Label which) {
+  Tally t;
+  for (size_t i = 0; i < prior.points.size(); ++i) {
+    if (prior.labels[i] != which) continue;
+    const int id = static_cast<int>(i);
+    ++t.total;
+    t.observed += (carver.free_hits(id) + carver.occupied_hits(id)) > 0 ? 1 : 0;
+    t.deleted += carver.deleted(id) ? 1 : 0;
+  }
+  return t;
+}
+
+// The lab corner of the acceptance test: floor (top at z = 0), a wall (face at x = 3) and a
+// 0.4 x 0.3 x 0.01 m plate on the floor that moves 0.3 m along +y between the runs.
+const Box kFloor{{-1.0, -2.0, -0.05}, {3.0, 2.0, 0.0}};
+const Box kWall{{3.0, -2.0, 0.0}, {3.1, 2.0, 2.0}};
+const Box kPlateOld{{1.3, -0.45, 0.0}, {1.7, -0.15, kPlateThick_m}};
+const Box kPlateNew{{1.3, -0.15, 0.0}, {1.7, 0.15, kPlateThick_m}};
+
+// The prior map of the first run: floor (none under the plate), wall, plate top. At the map's 2 cm
+// voxels a 1 cm plate's sides merge into its top-edge voxels, so the prior has no side points.
+Prior lab_prior(std::mt19937* rng) {
+  Prior prior;
+  add_grid(2, 0.0, {-1.0, -2.0}, {3.0, 2.0}, rng, &prior, [](const Eigen::Vector3d& p) {
+    if (inside_xy(p, kPlateOld, -1e-6)) return Label::kSkip;  // under the plate: never seen
+    // Floor under the new plate's place is still there in run 2, hidden under the plate.
+    return inside_xy(p, kPlateNew, 1e-6) ? Label::kOccluded : Label::kStatic;
+  });
+  add_grid(0, 3.0, {-2.0, 0.0}, {2.0, 2.0}, rng, &prior,
+           [](const Eigen::Vector3d&) { return Label::kStatic; });
+  add_grid(2, kPlateThick_m, {kPlateOld.lo.x(), kPlateOld.lo.y()}, {kPlateOld.hi.x(), kPlateOld.hi.y()}, rng,
+           &prior, [](const Eigen::Vector3d& p) {
+             // The old plate's row at y = -0.15 is also the new plate's edge: still real geometry.
+             return inside_xy(p, kPlateNew, 0.01) ? Label::kKeptPlate : Label::kGone;
+           });
+  return prior;
+}
+
+FreeSpaceCarver make_carver(int max_points, FreeSpaceCarverConfig cfg = {}) {
+  auto carver = FreeSpaceCarver::create(cfg, max_points);
+  EXPECT_TRUE(carver.ok()) << carver.status().message();
+  return std::move(carver.value());
+}
+
+// Run 2 in the lab corner: 8 depth images of the current scene (plate moved) from poses that walk
+// past the plates at 1-1.5 m and look at the wall and along the floor, carved against the prior with
+// T_prior_cam = T_error_world * T_world_cam * T_error_cam (identity errors: the exact pose).
+struct LabRun {
+  Prior prior;
+  FreeSpaceCarver carver;
+  std::vector<FreeSpaceObserveStats> stats;
+  VoxelMap map;  // run 2's keyframe clouds (new geometry enters the map the usual way)
+  int64_t rays = 0;
+  double carve_s = 0;
+};
+
+LabRun run_lab(const FreeSpaceCarverConfig& cfg, const Eigen::Isometry3d& T_error_world,
+               const Eigen::Isometry3d& T_error_cam) {
+  std::mt19937 rng(7);
+  Prior prior = lab_prior(&rng);
+  auto carver = FreeSpaceCarver::create(cfg, static_cast<int>(prior.points.size()));
+  EXPECT_TRUE(carver.ok()) << carver.status().message();
+  LabRun run{
+      std::move(prior), std::move(carver.value()), {}, std::move(VoxelMap::create({0.02, 400'000}).value())};
+  EXPECT_TRUE(run.carver.set_prior(run.prior.points.data(), static_cast<int>(run.prior.points.size())).ok());
+  const std::vector<Box> current = {kFloor, kWall, kPlateNew};
+  const hal::PinholeIntrinsics K = camera(320, 240, 260.0);
+  const std::vector<Eigen::Isometry3d> views = {
+      look_at({0.5, -0.3, 1.0}, {1.5, -0.3, 0.0}), look_at({0.6, 0.5, 0.9}, {1.5, -0.2, 0.0}),
+      look_at({0.5, -1.1, 1.0}, {1.5, -0.2, 0.0}), look_at({2.4, -0.3, 1.1}, {1.5, -0.3, 0.0}),
+      look_at({1.5, -1.2, 1.2}, {1.5, -0.3, 0.0}), look_at({0.0, 0.0, 1.2}, {3.0, 0.0, 0.8}),
+      look_at({0.2, -1.0, 0.6}, {3.0, 0.5, 0.3}),  look_at({0.3, 1.0, 0.8}, {3.0, -0.8, 0.5}),
+  };
+  KeyframeCloudConfig cloud_cfg;
+  core::Arena arena(keyframe_cloud_capacity_bytes(K.width, K.height, cloud_cfg));
+  const cv::Mat grey;
+  for (const Eigen::Isometry3d& T_world_cam : views) {
+    const cv::Mat depth = render_depth(current, K, T_world_cam, 0.02, &rng);
+    const auto t0 = std::chrono::steady_clock::now();
+    auto stats = run.carver.observe(depth, K, T_error_world * T_world_cam * T_error_cam, 1);
+    run.carve_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    EXPECT_TRUE(stats.ok()) << stats.status().message();
+    if (!stats.ok()) continue;
+    if (!stats->misaligned) {
+      EXPECT_GT(stats->invalid, 0);  // the NaN pixels (a misaligned frame casts no votes)
+    }
+    run.rays += stats->rays;
+    run.stats.push_back(*stats);
+    arena.reset();
+    auto cloud = build_keyframe_cloud(grey, depth, K, T_world_cam, cloud_cfg, &arena);
+    EXPECT_TRUE(cloud.ok()) << cloud.status().message();
+    if (cloud.ok()) run.map.insert(*cloud);
+  }
+  return run;
+}
+
+void print_tallies(const char* what, const Tally& gone, const Tally& stat) {
+  std::printf(
+      "[ info     ] %s: old plate %d/%d deleted (%.1f %%); static %d/%d deleted (%.3f %% of all, %.3f %% of "
+      "the"
+      " %d observed)\n",
+      what, gone.deleted, gone.total, gone.pct(gone.total), stat.deleted, stat.total, stat.pct(stat.total),
+      stat.pct(stat.observed), stat.observed);
+}
+
+TEST(FreeSpaceCarver, GivenAMovedPlateThenItsOldPlaceIsCarvedAndStaticSurfacesAreNotEroded) {
+  LabRun run = run_lab({}, Eigen::Isometry3d::Identity(), Eigen::Isometry3d::Identity());
+  ASSERT_EQ(run.stats.size(), 8u);
+  std::printf(
+      "[ info     ] carving: %lld rays in %.3f s = %.2f Mrays/s (1 thread, pose check included, %zu prior "
+      "points)\n",
+      static_cast<long long>(run.rays), run.carve_s, run.rays / run.carve_s * 1e-6, run.prior.points.size());
+  for (const FreeSpaceObserveStats& st : run.stats) {
+    EXPECT_TRUE(st.bias_checked);
+    EXPECT_FALSE(st.misaligned) << "median " << st.surface_median_m << " iqr " << st.surface_iqr_m;
+    EXPECT_LE(std::abs(st.surface_median_m), 0.001f);
+  }
+  const Tally gone = tally(run.carver, run.prior, Label::kGone);
+  const Tally stat = tally(run.carver, run.prior, Label::kStatic);
+  const Tally occluded = tally(run.carver, run.prior, Label::kOccluded);
+  const Tally kept_plate = tally(run.carver, run.prior, Label::kKeptPlate);
+  print_tallies("exact pose", gone, stat);
+  std::printf(
+      "[ info     ] occluded floor under the new plate %d/%d deleted; old plate row on the new plate's edge "
+      "%d/%d\n",
+      occluded.deleted, occluded.total, kept_plate.deleted, kept_plate.total);
+  ASSERT_EQ(gone.observed, gone.total);  // the views do cover the old place
+  EXPECT_GE(gone.deleted, 0.95 * gone.total);
+  EXPECT_GT(stat.observed, 10000);
+  EXPECT_LE(stat.deleted, 0.01 * stat.observed);
+  EXPECT_EQ(occluded.deleted, 0);  // floor hidden under the new plate is behind the measured surface
+
+  // The updated map: the carved prior plus run 2's clouds.
+  const size_t before = run.prior.points.size();
+  auto removed = run.carver.apply(&run.prior.points);
+  ASSERT_TRUE(removed.ok());
+  EXPECT_EQ(static_cast<size_t>(*removed), before - run.prior.points.size());
+  EXPECT_EQ(*removed, run.carver.deleted_count());
+  run.map.insert(run.prior.points.data(), static_cast<int>(run.prior.points.size()));
+  // Per 2 cm cell of each footprint's interior, the map's voxel at plate height (z in [0, 2 cm)):
+  // its mean is ~1 cm where the plate is and ~0 where the floor is.
+  auto plate_cells = [&](const Box& plate, int* cells) {
+    int raised = 0;
+    *cells = 0;
+    for (double x = plate.lo.x() + 0.03; x < plate.hi.x() - 0.02; x += 0.02) {
+      for (double y = plate.lo.y() + 0.03; y < plate.hi.y() - 0.02; y += 0.02) {
+        ++*cells;
+        const Voxel* v = run.map.find({x, y, 0.005});
+        if (v != nullptr && v->z_m > 0.006) ++raised;
+      }
+    }
+    return raised;
+  };
+  int old_cells = 0, new_cells = 0;
+  const int old_raised = plate_cells(kPlateOld, &old_cells);
+  const int new_raised = plate_cells(kPlateNew, &new_cells);
+  std::printf("[ info     ] updated map: plate top in %d/%d cells of the old place, %d/%d of the new place\n",
+              old_raised, old_cells, new_raised, new_cells);
+  EXPECT_LE(old_raised, 0.05 * old_cells);
+  EXPECT_GE(new_raised, 0.9 * new_cells);
+}
+
+// A pose error is the same for every ray of a frame, so votes cannot average it out; the pose check
+// (median and spread of the near-surface residual) must stop such frames from carving.
+TEST(FreeSpaceCarver, GivenAPoseErrorThenTheFramesAreRejectedAndNothingIsEroded) {
+  Eigen::Isometry3d T_down = Eigen::Isometry3d::Identity();
+  T_down.translation().z() = -0.01;  // the prior appears 1 cm above the measured floor
+  Eigen::Isometry3d T_roll = Eigen::Isometry3d::Identity();
+  T_roll.linear() =
+      Eigen::AngleAxisd(M_PI / 180.0, Eigen::Vector3d::UnitZ()).toRotationMatrix();  // 1°, optical axis
+  for (const auto& [name, T_error_world, T_error_cam] :
+       {std::tuple{"1 cm down", T_down, Eigen::Isometry3d::Identity()},
+        std::tuple{"1 deg roll", Eigen::Isometry3d::Identity(), T_roll}}) {
+    LabRun run = run_lab({}, T_error_world, T_error_cam);
+    for (const FreeSpaceObserveStats& st : run.stats) {
+      EXPECT_TRUE(st.misaligned) << name << ": median " << st.surface_median_m << " iqr " << st.surface_iqr_m
+                                 << " margin " << st.surface_margin_m;
+      EXPECT_EQ(st.free_votes, 0) << name;
+    }
+    EXPECT_EQ(run.carver.deleted_count(), 0) << name;
+  }
+  // Control: without the check the same 1 cm error erodes the floor (the check is what protects).
+  FreeSpaceCarverConfig no_check;
+  no_check.bias_check_subsample = 0;
+  LabRun run = run_lab(no_check, T_down, Eigen::Isometry3d::Identity());
+  const Tally stat = tally(run.carver, run.prior, Label::kStatic);
+  print_tallies("1 cm pose error, check off", tally(run.carver, run.prior, Label::kGone), stat);
+  EXPECT_GT(stat.deleted, 0.05 * stat.observed);
+}
+
+// Static scene, camera 0.35 m above the floor looking along it: the rays meet the floor 8.7-16.3°
+// above the surface, where a ray runs within a point's radius of the floor for ~6 radii.
+TEST(FreeSpaceCarver, GivenGrazingViewsOfAnUnchangedFloorThenItIsNotEroded) {
+  std::mt19937 rng(11);
+  Prior prior;
+  add_grid(2, 0.0, {-1.0, -2.0}, {3.0, 2.0}, &rng, &prior,
+           [](const Eigen::Vector3d&) { return Label::kStatic; });
+  add_grid(0, 3.0, {-2.0, 0.0}, {2.0, 2.0}, &rng, &prior,
+           [](const Eigen::Vector3d&) { return Label::kStatic; });
+  const std::vector<Box> current = {kFloor, kWall};
+  const hal::PinholeIntrinsics K = camera(320, 100, 750.0);  // vertical field of view ±3.8°
+  FreeSpaceCarver carver = make_carver(static_cast<int>(prior.points.size()));
+  ASSERT_TRUE(carver.set_prior(prior.points.data(), static_cast<int>(prior.points.size())).ok());
+  const double pitch_rad = 12.5 * M_PI / 180.0, height_m = 0.35;
+  for (double yaw_deg : {-20.0, 0.0, 20.0}) {
+    for (double x0 : {-0.8, -0.3}) {
+      const double yaw = yaw_deg * M_PI / 180.0;
+      const Eigen::Vector3d eye(x0, 0.0, height_m);
+      const Eigen::Vector3d dir(std::cos(pitch_rad) * std::cos(yaw), std::cos(pitch_rad) * std::sin(yaw),
+                                -std::sin(pitch_rad));
+      const Eigen::Isometry3d T_world_cam = look_at(eye, eye + dir);
+      const cv::Mat depth = render_depth(current, K, T_world_cam, 0.02, &rng);
+      auto stats = carver.observe(depth, K, T_world_cam, 1);
+      ASSERT_TRUE(stats.ok()) << stats.status().message();
+      EXPECT_EQ(stats->grazing, 0);  // cos(incidence) >= sin(8.7°) = 0.15 > min_cos_incidence
+    }
+  }
+  const Tally floor = tally(carver, prior, Label::kStatic);
+  std::printf("[ info     ] grazing floor: %d of %d observed points deleted (%.3f %%)\n", floor.deleted,
+              floor.observed, floor.pct(floor.observed));
+  EXPECT_GT(floor.observed, 2000);
+  EXPECT_LE(floor.deleted, 0.01 * floor.observed);
+}
+
+// A new box in front of the wall hides part of it, and the prior also holds points behind the wall
+// (another room): neither may be deleted. Removed clutter in front of the wall is the control.
+TEST(FreeSpaceCarver, GivenPriorPointsBehindTheMeasuredSurfaceThenTheyAreNeverDeleted) {
+  std::mt19937 rng(3);
+  const Box new_box{{2.0, -0.5, 0.0}, {2.3, 0.5, 1.0}};
+  const Box old_clutter{{1.2, 0.3, 0.0}, {1.5, 0.6, 0.6}};
+  Prior prior;
+  add_grid(0, 3.0, {-2.0, 0.0}, {2.0, 2.0}, &rng, &prior,
+           [](const Eigen::Vector3d&) { return Label::kOccluded; });
+  add_grid(0, 3.5, {-2.0, 0.0}, {2.0, 2.0}, &rng, &prior,
+           [](const Eigen::Vector3d&) { return Label::kOccluded; });
+  // The removed clutter's face towards the camera (x = 1.0).
+  add_grid(0, old_clutter.lo.x(), {old_clutter.lo.y(), 0.02}, {old_clutter.hi.y(), old_clutter.hi.z()}, &rng,
+           &prior, [](const Eigen::Vector3d&) { return Label::kGone; });
+  const std::vector<Box> current = {kFloor, kWall, new_box};
+  const hal::PinholeIntrinsics K = camera(320, 240, 260.0);
+  FreeSpaceCarver carver = make_carver(static_cast<int>(prior.points.size()));
+  ASSERT_TRUE(carver.set_prior(prior.points.data(), static_cast<int>(prior.points.size())).ok());
+  for (const Eigen::Isometry3d& T :
+       {look_at({0.0, 0.0, 0.7}, {3.0, 0.0, 0.3}), look_at({0.2, 0.9, 0.8}, {3.0, 0.2, 0.3}),
+        look_at({0.1, -0.6, 0.9}, {3.0, 0.6, 0.3})}) {
+    auto stats = carver.observe(render_depth(current, K, T, 0.02, &rng), K, T, 1);
+    ASSERT_TRUE(stats.ok()) << stats.status().message();
+  }
+  const Tally behind = tally(carver, prior, Label::kOccluded);
+  const Tally gone = tally(carver, prior, Label::kGone);
+  std::printf(
+      "[ info     ] occlusion: %d of %d points behind surfaces deleted; removed clutter %d/%d deleted\n",
+      behind.deleted, behind.total, gone.deleted, gone.total);
+  EXPECT_GT(behind.observed, 1000);
+  EXPECT_EQ(behind.deleted, 0);
+  ASSERT_EQ(gone.observed, gone.total);
+  EXPECT_GE(gone.deleted, 0.95 * gone.total);
+}
+
+// One ray, exact counts: a 9x9 image of the plane z = 2 m seen head-on; only the centre pixel's
+// ray passes within 5 mm of points on the optical axis (its neighbours' rays are 1 cm away at 1 m).
+class CarverOneRay : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    K_ = camera(9, 9, 100.0);
+    depth_ = cv::Mat(9, 9, CV_32FC1, cv::Scalar(2.0f));
+    for (float z : {1.0f, 1.995f, 2.0f, 3.0f}) {  // free, within the margin, on the surface, behind
+      CloudPoint p;
+      p.z_m = z;
+      points_.push_back(p);
+    }
+  }
+  hal::PinholeIntrinsics K_;
+  cv::Mat depth_;
+  std::vector<CloudPoint> points_;
+};
+
+TEST_F(CarverOneRay, GivenTwoObservationsThenTheFreePointIsDeletedAndOnlyIt) {
+  FreeSpaceCarver carver = make_carver(8);
+  ASSERT_TRUE(carver.set_prior(points_.data(), 4).ok());
+  auto stats = carver.observe(depth_, K_, Eigen::Isometry3d::Identity(), 1);
+  ASSERT_TRUE(stats.ok()) << stats.status().message();
+  EXPECT_EQ(stats->pixels, 81);
+  EXPECT_EQ(stats->not_planar, 81 - 25);  // within normal_window_px = 2 of the border
+  EXPECT_EQ(stats->rays, 25);
+  // A sphere is crossed twice by a ray (entry, exit) and counted once.
+  EXPECT_EQ(carver.free_hits(0), 1);
+  EXPECT_EQ(carver.occupied_hits(0), 0);
+  EXPECT_EQ(carver.occupied_hits(1), 1);  // 5 mm in front: margin(2 m) = 3 + 2 * 4 mm = 11 mm
+  EXPECT_EQ(carver.free_hits(1), 0);
+  EXPECT_EQ(carver.occupied_hits(2), 1);
+  EXPECT_EQ(carver.free_hits(3) + carver.occupied_hits(3), 0);
+  EXPECT_EQ(carver.deleted_count(), 0);  // min_free_hits = 2
+
+  core::AllocationScope scope;
+  stats = carver.observe(depth_, K_, Eigen::Isometry3d::Identity(), 1);
+  EXPECT_EQ(scope.allocations(), 0u);
+  ASSERT_TRUE(stats.ok());
+  EXPECT_EQ(stats->free_votes, 1);
+  EXPECT_EQ(stats->occupied_votes, 2);
+  EXPECT_TRUE(carver.deleted(0));
+  EXPECT_FALSE(carver.deleted(1));
+  EXPECT_FALSE(carver.deleted(2));
+  EXPECT_FALSE(carver.deleted(3));
+  auto removed = carver.apply(&points_);
+  ASSERT_TRUE(removed.ok());
+  EXPECT_EQ(*removed, 1);
+  ASSERT_EQ(points_.size(), 3u);
+  EXPECT_FLOAT_EQ(points_[0].z_m, 1.995f);  // order kept
+  EXPECT_FLOAT_EQ(points_[2].z_m, 3.0f);
+}
+
+TEST_F(CarverOneRay, GivenAnOccupiedObservationThenTheRatioKeepsThePoint) {
+  FreeSpaceCarver carver = make_carver(8);
+  ASSERT_TRUE(carver.set_prior(points_.data(), 4).ok());
+  // Twice free (the plane at 2 m), three times occupied (a plane through the point at 1 m).
+  for (int k = 0; k < 2; ++k) ASSERT_TRUE(carver.observe(depth_, K_, Eigen::Isometry3d::Identity(), 1).ok());
+  const cv::Mat near(9, 9, CV_32FC1, cv::Scalar(1.0f));
+  for (int k = 0; k < 3; ++k) ASSERT_TRUE(carver.observe(near, K_, Eigen::Isometry3d::Identity(), 1).ok());
+  EXPECT_EQ(carver.free_hits(0), 2);
+  EXPECT_EQ(carver.occupied_hits(0), 3);
+  EXPECT_FALSE(carver.deleted(0));  // free 2 <= 1.0 * occupied 3
+}
+
+TEST_F(CarverOneRay, GivenNaNAndInfPixelsThenTheyAreSkipped) {
+  FreeSpaceCarver carver = make_carver(8);
+  ASSERT_TRUE(carver.set_prior(points_.data(), 4).ok());
+  depth_.at<float>(4, 4) = kNaN;
+  depth_.at<float>(2, 2) = std::numeric_limits<float>::infinity();
+  depth_.at<float>(6, 6) = -1.0f;
+  auto stats = carver.observe(depth_, K_, Eigen::Isometry3d::Identity(), 1);
+  ASSERT_TRUE(stats.ok()) << stats.status().message();
+  EXPECT_EQ(stats->invalid, 3);
+  EXPECT_EQ(stats->free_votes + stats->occupied_votes, 0);  // the only ray through the points was NaN
+  // (2, 4), (6, 4), (4, 2), (4, 6) have an invalid pixel at ±2: no plane, no ray.
+  EXPECT_EQ(stats->rays, 25 - 3 - 4);
+}
+
+TEST_F(CarverOneRay, GivenBadInputThenClearErrors) {
+  FreeSpaceCarver carver = make_carver(3);
+  EXPECT_EQ(carver.set_prior(points_.data(), 4).code(), core::ErrorCode::kOutOfRange);
+  EXPECT_EQ(carver.set_prior(nullptr, 2).code(), core::ErrorCode::kInvalidArgument);
+  std::vector<CloudPoint> bad = {points_[0], points_[1]};
+  bad[1].y_m = kNaN;
+  const core::Status st = carver.set_prior(bad.data(), 2);
+  EXPECT_EQ(st.code(), core::ErrorCode::kInvalidArgument);
+  EXPECT_NE(st.message().find("point 1"), std::string::npos) << st.message();
+  EXPECT_EQ(carver.observe(depth_, K_, Eigen::Isometry3d::Identity(), 1).status().code(),
+            core::ErrorCode::kInvalidArgument);  // no prior yet
+
+  ASSERT_TRUE(carver.set_prior(points_.data(), 3).ok());
+  Eigen::Isometry3d T_nan = Eigen::Isometry3d::Identity();
+  T_nan.translation().x() = kNaN;
+  EXPECT_EQ(carver.observe(depth_, K_, T_nan, 1).status().code(), core::ErrorCode::kInvalidArgument);
+  Eigen::Isometry3d T_scaled = Eigen::Isometry3d::Identity();
+  T_scaled.linear() *= 1.1;
+  EXPECT_EQ(carver.observe(depth_, K_, T_scaled, 1).status().code(), core::ErrorCode::kInvalidArgument);
+  EXPECT_EQ(carver.observe(depth_, K_, Eigen::Isometry3d::Identity(), 0).status().code(),
+            core::ErrorCode::kInvalidArgument);
+  const cv::Mat wrong_type(9, 9, CV_64FC1, cv::Scalar(2.0));
+  EXPECT_EQ(carver.observe(wrong_type, K_, Eigen::Isometry3d::Identity(), 1).status().code(),
+            core::ErrorCode::kInvalidArgument);
+  const cv::Mat wrong_size(8, 9, CV_32FC1, cv::Scalar(2.0f));
+  EXPECT_EQ(carver.observe(wrong_size, K_, Eigen::Isometry3d::Identity(), 1).status().code(),
+            core::ErrorCode::kInvalidArgument);
+  std::vector<CloudPoint> other(5);
+  EXPECT_EQ(carver.apply(&other).status().code(), core::ErrorCode::kInvalidArgument);
+
+  FreeSpaceCarverConfig cfg;
+  cfg.min_depth_m = 5.0f;  // above max_depth_m
+  EXPECT_EQ(FreeSpaceCarver::create(cfg, 10).status().code(), core::ErrorCode::kInvalidArgument);
+  EXPECT_EQ(FreeSpaceCarver::create({}, -1).status().code(), core::ErrorCode::kInvalidArgument);
+}
+
+TEST_F(CarverOneRay, GivenAnEmptyPriorThenObservingAndApplyingAreNoOps) {
+  FreeSpaceCarver carver = make_carver(0);
+  ASSERT_TRUE(carver.set_prior(nullptr, 0).ok());
+  auto stats = carver.observe(depth_, K_, Eigen::Isometry3d::Identity(), 1);
+  ASSERT_TRUE(stats.ok()) << stats.status().message();
+  EXPECT_EQ(stats->rays, 25);
+  EXPECT_EQ(stats->free_votes + stats->occupied_votes, 0);
+  std::vector<CloudPoint> none;
+  auto removed = carver.apply(&none);
+  ASSERT_TRUE(removed.ok());
+  EXPECT_EQ(*removed, 0);
+}
+
+}  // namespace
+}  // namespace hwr::recon
