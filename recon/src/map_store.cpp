@@ -567,4 +567,26 @@ core::Expected<SegmentRecord> MapStore::read_segment(uint32_t segment_id) const 
   return out;
 }
 
+core::Expected<SegmentRecord> MapStore::read_keyframes(uint32_t segment_id) const {
+  const std::string seg_dir = join(dir_, kSegmentsDir) + "/" + segment_dir_name(segment_id);
+  if (!is_directory(seg_dir)) {
+    return core::NotFound("map store " + dir_ + ": no segment " + std::to_string(segment_id) + " (" +
+                          seg_dir + " not found; list_segments() gives the ids present)");
+  }
+  const std::string yaml_path = join(seg_dir, kSegmentYaml);
+  auto y = read_segment_yaml(yaml_path);
+  if (!y.ok()) return y.status();
+  if (y->record.segment_id != segment_id) {
+    return core::CorruptData(yaml_path + ": segment_id " + std::to_string(y->record.segment_id) +
+                             " does not match its directory");
+  }
+  SegmentRecord out = std::move(y->record);
+  const std::string kf_path = join(seg_dir, kKeyframesBin);
+  HWR_RETURN_IF_ERROR(check_file_size(kf_path, y->keyframes_bin_bytes));
+  HWR_RETURN_IF_ERROR(store_detail::read_keyframes_file(kf_path, metadata_.descriptor_bytes,
+                                                        BinExpectation{y->keyframes, y->keyframes_bin_crc32},
+                                                        &out.keyframes));
+  return out;
+}
+
 }  // namespace hwr::recon

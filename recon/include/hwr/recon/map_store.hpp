@@ -113,6 +113,10 @@ class MapStore {
   // Reads and validates one segment. kNotFound, kCorruptData (CRC / size mismatch, truncation),
   // kParseError.
   core::Expected<SegmentRecord> read_segment(uint32_t segment_id) const;
+  // Reads and validates one segment's segment.yaml and keyframes.bin, not its cloud
+  // (points_segment stays empty; cloud.bin is not opened): the prior map's index (issue #6,
+  // prior_map.hpp) without the clouds in memory. Errors as read_segment's for those two files.
+  core::Expected<SegmentRecord> read_keyframes(uint32_t segment_id) const;
 
  private:
   MapStore(std::string dir, StoreMetadata metadata) : dir_(std::move(dir)), metadata_(std::move(metadata)) {}

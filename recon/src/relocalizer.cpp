@@ -1,0 +1,665 @@
+#include "hwr/recon/relocalizer.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <numeric>
+
+namespace hwr::recon {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+constexpr double kRadToDeg = 180.0 / kPi;
+
+double wrap_pi(double a) {
+  a = std::fmod(a + kPi, 2.0 * kPi);
+  if (a < 0) a += 2.0 * kPi;
+  return a - kPi;
+}
+
+// Yaw of a rotation between two gravity-aligned frames (z up): the angle of its x axis about z.
+double yaw_of(const Eigen::Matrix3d& R) { return std::atan2(R(1, 0), R(0, 0)); }
+
+Eigen::Matrix3d rot_z(double yaw_rad) {
+  return Eigen::AngleAxisd(yaw_rad, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+}
+
+// How far apart two hypotheses T_prior_world put the local map: the displacement of its centroid
+// (current world) and the rotation angle between them.
+struct PoseDistance {
+  double m = 0, rad = 0;
+};
+PoseDistance pose_distance(const Eigen::Isometry3d& A, const Eigen::Isometry3d& B, const Eigen::Vector3d& c) {
+  PoseDistance d;
+  d.m = (A * c - B * c).norm();
+  d.rad = Eigen::AngleAxisd(A.linear().transpose() * B.linear()).angle();
+  return d;
+}
+
+bool finite_pose(const Eigen::Isometry3d& T) { return T.matrix().allFinite(); }
+
+std::string format(const char* fmt, double a = 0, double b = 0, double c = 0, double d = 0) {
+  char buf[256];
+  std::snprintf(buf, sizeof(buf), fmt, a, b, c, d);
+  return buf;
+}
+
+struct Hypothesis {
+  Eigen::Isometry3d T_seed = Eigen::Isometry3d::Identity();
+  bool from_orb = false;
+  int orb_inliers = 0;
+  NdtResult coarse;
+  double coarse_score = -1;  // per source point; -1: not converged
+  NdtResult fine;
+  double fine_score = -1;
+  bool fine_run = false;
+};
+
+}  // namespace
+
+void sample_candidates(const std::vector<Eigen::Vector3d>& p_prior_cam_m, const PositionPrior& prior,
+                       double moved_m, double sigma_factor, std::vector<int>* out) {
+  out->clear();
+  const int n = static_cast<int>(p_prior_cam_m.size());
+  if (!prior.valid) {
+    out->resize(static_cast<size_t>(n));
+    std::iota(out->begin(), out->end(), 0);
+    return;
+  }
+  // Paper sec. II-E: "key frames are sampled within twice the moving distance"; the prior's own
+  // uncertainty widens the disc. Horizontal: GNSS height is its worst axis and the robot stays on
+  // its floor.
+  const double radius_m = 2.0 * moved_m + sigma_factor * prior.sigma_m;
+  auto dist = [&](int i) {
+    const Eigen::Vector3d& p = p_prior_cam_m[static_cast<size_t>(i)];
+    return std::hypot(p.x() - prior.p_prior_m.x(), p.y() - prior.p_prior_m.y());
+  };
+  for (int i = 0; i < n; ++i) {
+    if (dist(i) <= radius_m) out->push_back(i);
+  }
+  std::sort(out->begin(), out->end(), [&](int a, int b) {
+    const double da = dist(a), db = dist(b);
+    return da < db || (da == db && a < b);
+  });
+}
+
+const char* relocalization_reason_name(RelocalizationReason r) {
+  switch (r) {
+    case RelocalizationReason::kLocalized:
+      return "localized";
+    case RelocalizationReason::kInvalidQuery:
+      return "invalid query";
+    case RelocalizationReason::kTooFewLocalPoints:
+      return "too few local map points";
+    case RelocalizationReason::kNoCandidates:
+      return "no candidate keyframes";
+    case RelocalizationReason::kNdtFailed:
+      return "NDT did not converge";
+    case RelocalizationReason::kLowInlierRatio:
+      return "low inlier ratio";
+    case RelocalizationReason::kPriorDisagreement:
+      return "disagrees with a prior";
+    case RelocalizationReason::kAmbiguous:
+      return "ambiguous";
+    case RelocalizationReason::kNotVerified:
+      return "not verified by ORB";
+    case RelocalizationReason::kPriorMapError:
+      return "prior map error";
+  }
+  return "unknown";
+}
+
+struct Relocalizer::Impl {
+  Impl(const RelocalizerConfig& c, const hal::PinholeIntrinsics& k, int max_feat, NdtAligner coarse,
+       NdtAligner fine)
+      : config(c),
+        K(k),
+        max_features(max_feat),
+        current_index(max_feat, c.lsh),
+        prior_matches(static_cast<size_t>(max_feat)),
+        ransac(max_feat),
+        ndt_coarse(std::move(coarse)),
+        ndt_fine(std::move(fine)),
+        matches(static_cast<size_t>(max_feat)),
+        correspondences(static_cast<size_t>(max_feat)),
+        inlier_mask(static_cast<size_t>(max_feat)),
+        source(static_cast<size_t>(c.max_source_points) * 3) {
+    hypotheses.reserve(static_cast<size_t>(2 * c.top_k + c.yaw_sweep_steps + 1));
+  }
+
+  // Gathers the prior points about `center` into `target` unless the last gather covers it.
+  core::Status gather_target(PriorMap* prior, const Eigen::Vector3d& center, PointsView* view,
+                             RelocalizationCounters* counters);
+  // Subsamples the local map into `source` (stride), with its centroid and extent.
+  void subsample_source(const PointsView& local);
+  // Step e: LSH matches of the current keyframe with the prior keyframes near the camera under
+  // T_prior_world that this pose reprojects onto them (pixel and depth); the most over those keyframes.
+  int verify(const Eigen::Isometry3d& T_prior_world, const RelocalizationQuery& q, const PriorMap& prior);
+
+  RelocalizerConfig config;
+  hal::PinholeIntrinsics K;
+  int max_features;
+  estimation::LshMatcher current_index;  // the query keyframe's descriptors, per call
+  // Every prior keyframe's descriptors in one LSH index (prepare()), and the keyframe each came from.
+  std::unique_ptr<estimation::LshMatcher> prior_index;
+  std::vector<int> prior_owner;
+  uint64_t indexed_prior = 0;  // PriorMap::instance_id() of the indexed map (0: none)
+  size_t indexed_keyframes = 0;
+  std::vector<estimation::FeatureMatch> prior_matches;
+  std::vector<int> votes;
+  std::vector<uint8_t> is_candidate;
+  std::vector<int> selected;
+  estimation::PoseRansac ransac;
+  NdtAligner ndt_coarse, ndt_fine;
+  std::vector<estimation::FeatureMatch> matches;
+  std::vector<estimation::Correspondence> correspondences;
+  std::vector<uint8_t> inlier_mask;
+  std::vector<float> source;  // packed xyz, current world
+  int n_source = 0;
+  Eigen::Vector3d centroid_world = Eigen::Vector3d::Zero();
+  double extent_m = 0;
+  std::vector<CloudPoint> target;  // prior frame
+  bool target_valid = false;
+  Eigen::Vector3d target_center = Eigen::Vector3d::Zero();
+  std::vector<Eigen::Vector3d> keyframe_positions;
+  std::vector<int> candidates;
+  std::vector<std::pair<int, int>> ranked;  // (matches, keyframe index)
+  std::vector<Hypothesis> hypotheses;
+  std::vector<int> order;
+};
+
+namespace {
+// The target ball is gathered this much wider than needed, so that nearby hypotheses share it.
+constexpr double kTargetReuseM = 1.0;
+}  // namespace
+
+void Relocalizer::Impl::subsample_source(const PointsView& local) {
+  n_source = 0;
+  const int cap = config.max_source_points;
+  int finite = 0;
+  for (int i = 0; i < local.n; ++i) finite += local.at(i).allFinite() ? 1 : 0;
+  const int stride = std::max(1, (finite + cap - 1) / cap);
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  int k = 0;
+  for (int i = 0; i < local.n && n_source < cap; ++i) {
+    const Eigen::Vector3f p = local.at(i);
+    if (!p.allFinite()) continue;
+    if (k++ % stride != 0) continue;
+    float* o = &source[static_cast<size_t>(n_source) * 3];
+    o[0] = p.x();
+    o[1] = p.y();
+    o[2] = p.z();
+    sum += p.cast<double>();
+    ++n_source;
+  }
+  centroid_world = n_source > 0 ? Eigen::Vector3d(sum / n_source) : Eigen::Vector3d::Zero();
+  extent_m = 0;
+  for (int i = 0; i < n_source; ++i) {
+    const float* o = &source[static_cast<size_t>(i) * 3];
+    extent_m = std::max(extent_m, (Eigen::Vector3d(o[0], o[1], o[2]) - centroid_world).norm());
+  }
+}
+
+core::Status Relocalizer::Impl::gather_target(PriorMap* prior, const Eigen::Vector3d& center,
+                                              PointsView* view, RelocalizationCounters* counters) {
+  if (!target_valid || (center - target_center).norm() > kTargetReuseM) {
+    const double radius_m = extent_m + config.target_margin_m + kTargetReuseM;
+    auto stats = prior->points_near(center, radius_m, &target);
+    if (!stats.ok()) {
+      target_valid = false;
+      return stats.status();
+    }
+    target_valid = true;
+    target_center = center;
+    counters->target_points = std::max<int64_t>(counters->target_points, static_cast<int64_t>(target.size()));
+  }
+  const int n = static_cast<int>(target.size());
+  const int stride = std::max(1, (n + config.max_target_points - 1) / config.max_target_points);
+  view->xyz = n > 0 ? &target[0].x_m : nullptr;
+  view->n = n / stride;
+  view->stride_floats = 4 * stride;  // CloudPoint is 4 floats wide
+  return core::Status::Ok();
+}
+
+int Relocalizer::Impl::verify(const Eigen::Isometry3d& T_prior_world, const RelocalizationQuery& q,
+                              const PriorMap& prior) {
+  const Eigen::Isometry3d T_prior_cam = T_prior_world * q.T_world_cam;
+  const Eigen::Isometry3d T_cam_prior = T_prior_cam.inverse();
+  const Eigen::Vector3d axis = T_prior_cam.linear().col(2);
+  const double min_cos = std::cos(config.verify_max_angle_rad);
+  // The verify_keyframes nearest prior keyframes looking the same way.
+  const std::vector<PriorKeyframe>& kfs = prior.keyframes();
+  ranked.clear();
+  for (size_t i = 0; i < kfs.size(); ++i) {
+    const double d = (kfs[i].T_prior_cam.translation() - T_prior_cam.translation()).norm();
+    if (d > config.verify_radius_m || kfs[i].T_prior_cam.linear().col(2).dot(axis) < min_cos) continue;
+    ranked.emplace_back(static_cast<int>(std::lround(d * 1e4)), static_cast<int>(i));
+  }
+  std::sort(ranked.begin(), ranked.end());
+  int best = 0;
+  const int n_kf = std::min(config.verify_keyframes, static_cast<int>(ranked.size()));
+  for (int r = 0; r < n_kf; ++r) {
+    const PriorKeyframe& kf = kfs[static_cast<size_t>(ranked[static_cast<size_t>(r)].second)];
+    const int n = current_index.match(kf.features, matches.data(), max_features);
+    int agree = 0;
+    for (int i = 0; i < n; ++i) {
+      const estimation::Feature& fp = kf.features.feature(matches[static_cast<size_t>(i)].query);
+      const estimation::Feature& fc = q.features->feature(matches[static_cast<size_t>(i)].train);
+      if (!(fp.depth_m > 0)) continue;
+      const Eigen::Vector3d p_cam = T_cam_prior * (kf.T_prior_cam * fp.p_cam_m);
+      if (!(p_cam.z() > 0)) continue;
+      const double du = K.fx * p_cam.x() / p_cam.z() + K.cx - fc.u_px;
+      const double dv = K.fy * p_cam.y() / p_cam.z() + K.cy - fc.v_px;
+      const double tol_px = config.verify_px * q.features->scale(fc.octave);
+      if (du * du + dv * dv > tol_px * tol_px) continue;
+      if (fc.depth_m > 0 && std::abs(p_cam.z() - fc.depth_m) > config.verify_depth_frac * fc.depth_m)
+        continue;
+      ++agree;
+    }
+    best = std::max(best, agree);
+  }
+  return best;
+}
+
+void Relocalizer::prepare(const PriorMap& prior) {
+  Impl& m = *impl_;
+  const std::vector<PriorKeyframe>& kfs = prior.keyframes();
+  int total = 0;
+  for (const PriorKeyframe& kf : kfs) total += kf.features.size();
+  const hal::PinholeIntrinsics& K = prior.metadata().intrinsics;
+  estimation::FrameFeatures all(std::max(total, 1), K.width, K.height);
+  m.prior_owner.assign(static_cast<size_t>(std::max(total, 1)), 0);
+  for (size_t k = 0; k < kfs.size(); ++k) {
+    for (int i = 0; i < kfs[k].features.size(); ++i) {
+      m.prior_owner[static_cast<size_t>(all.size())] = static_cast<int>(k);
+      all.push_back(kfs[k].features.feature(i), kfs[k].features.descriptor(i));
+    }
+  }
+  // Nearest neighbour only: the same landmark seen from neighbouring keyframes would fail a ratio
+  // test, and each of its copies is as good a vote.
+  estimation::LshConfig lsh = m.config.vote_lsh;
+  lsh.ratio = std::numeric_limits<float>::infinity();
+  lsh.max_distance = m.config.vote_max_distance;
+  m.prior_index = std::make_unique<estimation::LshMatcher>(std::max(total, 1), lsh);
+  m.prior_index->build(all);
+  m.indexed_prior = prior.instance_id();
+  m.indexed_keyframes = kfs.size();
+}
+
+Relocalizer::Relocalizer(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+Relocalizer::Relocalizer(Relocalizer&&) noexcept = default;
+Relocalizer& Relocalizer::operator=(Relocalizer&&) noexcept = default;
+Relocalizer::~Relocalizer() = default;
+const RelocalizerConfig& Relocalizer::config() const { return impl_->config; }
+
+core::Expected<Relocalizer> Relocalizer::create(const RelocalizerConfig& c, const hal::PinholeIntrinsics& K,
+                                                int max_features) {
+  if (!K.valid()) return core::InvalidArgument("relocalizer: invalid intrinsics");
+  if (max_features < 1) return core::InvalidArgument("relocalizer: max_features must be >= 1");
+  if (c.top_k < 1 || c.keep_best < 1 || c.keep_best > 3 || c.min_orb_inliers < 3 || c.min_votes < 0 ||
+      c.verify_keyframes < 0 || c.yaw_sweep_steps < 0) {
+    return core::InvalidArgument(
+        "relocalizer: top_k >= 1, keep_best in [1, 3], min_orb_inliers >= 3, min_votes >= 0, "
+        "verify_keyframes >= 0 and "
+        "yaw_sweep_steps >= 0 required");
+  }
+  if (c.max_source_points < 1 || c.max_source_points > c.ndt_coarse.max_source_points ||
+      c.max_source_points > c.ndt_fine.max_source_points || c.max_target_points < 1 ||
+      c.max_target_points > c.ndt_coarse.max_target_points ||
+      c.max_target_points > c.ndt_fine.max_target_points) {
+    return core::InvalidArgument(
+        "relocalizer: max_source_points / max_target_points must be >= 1 and within the NDT configs' "
+        "capacities");
+  }
+  for (double v :
+       {c.candidate_sigma_factor, c.yaw_gate_sigmas, c.yaw_gate_margin_rad, c.dedup_m, c.dedup_rad,
+        c.target_margin_m, c.min_inlier_ratio, c.min_score_margin, c.distinct_m, c.distinct_rad,
+        c.max_ndt_correction_m, c.max_ndt_correction_rad, c.position_gate_sigmas, c.position_gate_margin_m,
+        c.verify_radius_m, c.verify_max_angle_rad, c.verify_px, c.verify_depth_frac}) {
+    if (!(v >= 0) || !std::isfinite(v)) {
+      return core::InvalidArgument(
+          "relocalizer: sigma factors, gates, margins and thresholds must be finite and >= 0");
+    }
+  }
+  auto coarse = NdtAligner::create(c.ndt_coarse);
+  if (!coarse.ok()) return core::InvalidArgument("relocalizer: ndt_coarse: " + coarse.status().message());
+  auto fine = NdtAligner::create(c.ndt_fine);
+  if (!fine.ok()) return core::InvalidArgument("relocalizer: ndt_fine: " + fine.status().message());
+  return Relocalizer(
+      std::make_unique<Impl>(c, K, max_features, std::move(coarse).value(), std::move(fine).value()));
+}
+
+RelocalizationResult Relocalizer::relocalize(const RelocalizationQuery& q, PriorMap* prior) {
+  const auto t0 = std::chrono::steady_clock::now();
+  Impl& m = *impl_;
+  const RelocalizerConfig& cfg = m.config;
+  RelocalizationResult res;
+  auto done = [&](RelocalizationReason reason, std::string message) {
+    res.reason = reason;
+    res.localized = reason == RelocalizationReason::kLocalized;
+    if (!res.localized) res.T_prior_world = Eigen::Isometry3d::Identity();
+    res.message = std::move(message);
+    if (res.appearance_s > 0 && res.geometry_s > 0) {
+      res.ndt_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() -
+                  res.appearance_s - res.geometry_s;
+    }
+    res.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    return res;
+  };
+
+  // ---- the query ----
+  if (prior == nullptr || q.features == nullptr) {
+    return done(RelocalizationReason::kInvalidQuery,
+                "relocalizer: no prior map or no keyframe features given");
+  }
+  if (q.features->size() > m.max_features) {
+    return done(RelocalizationReason::kInvalidQuery,
+                "relocalizer: the keyframe has " + std::to_string(q.features->size()) +
+                    " features, more than the max_features (" + std::to_string(m.max_features) +
+                    ") it was created for");
+  }
+  if (!finite_pose(q.T_world_cam) || !std::isfinite(q.moved_m) || q.moved_m < 0 ||
+      (q.position.valid && (!q.position.p_prior_m.allFinite() || !(q.position.sigma_m >= 0) ||
+                            !std::isfinite(q.position.sigma_m))) ||
+      (q.yaw_valid &&
+       (!std::isfinite(q.yaw_prior_rad) || !(q.yaw_sigma_rad >= 0) || !std::isfinite(q.yaw_sigma_rad)))) {
+    return done(RelocalizationReason::kInvalidQuery,
+                "relocalizer: non-finite pose, negative or non-finite moved distance, or an invalid prior");
+  }
+  if (q.local_map_world.n < 0 || (q.local_map_world.n > 0 && q.local_map_world.xyz == nullptr) ||
+      q.local_map_world.stride_floats < 3) {
+    return done(RelocalizationReason::kInvalidQuery, "relocalizer: invalid local map view");
+  }
+  m.subsample_source(q.local_map_world);
+  if (m.n_source < std::max(cfg.ndt_coarse.min_source_points, cfg.ndt_fine.min_source_points)) {
+    return done(
+        RelocalizationReason::kTooFewLocalPoints,
+        "relocalizer: the local map has " + std::to_string(m.n_source) + " finite points; NDT needs " +
+            std::to_string(std::max(cfg.ndt_coarse.min_source_points, cfg.ndt_fine.min_source_points)));
+  }
+  const PointsView source{m.source.data(), m.n_source, 3};
+  m.target_valid = false;
+
+  // ---- a. candidates ----
+  const std::vector<PriorKeyframe>& kfs = prior->keyframes();
+  m.keyframe_positions.resize(kfs.size());
+  for (size_t i = 0; i < kfs.size(); ++i) m.keyframe_positions[i] = kfs[i].T_prior_cam.translation();
+  sample_candidates(m.keyframe_positions, q.position, q.moved_m, cfg.candidate_sigma_factor, &m.candidates);
+  res.counters.candidates = static_cast<int>(m.candidates.size());
+  if (m.candidates.empty()) {
+    return done(
+        RelocalizationReason::kNoCandidates,
+        format("relocalizer: no prior keyframe within 2 x %.1f m + %.0f sigma (%.1f m) of the position "
+               "prior",
+               q.moved_m, cfg.candidate_sigma_factor, q.position.sigma_m));
+  }
+
+  // ---- b. appearance: one query of the prior index; each match votes for its keyframe ----
+  if (m.indexed_prior != prior->instance_id() || m.indexed_keyframes != kfs.size()) {
+    const auto t_index = std::chrono::steady_clock::now();
+    prepare(*prior);
+    res.index_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_index).count();
+  }
+  m.votes.assign(kfs.size(), 0);
+  m.is_candidate.assign(kfs.size(), 0);
+  for (int c : m.candidates) m.is_candidate[static_cast<size_t>(c)] = 1;
+  const int n_votes = m.prior_index->match(*q.features, m.prior_matches.data(), m.max_features);
+  for (int i = 0; i < n_votes; ++i) {
+    const int k = m.prior_owner[static_cast<size_t>(m.prior_matches[static_cast<size_t>(i)].train)];
+    if (m.is_candidate[static_cast<size_t>(k)]) ++m.votes[static_cast<size_t>(k)];
+  }
+  m.ranked.clear();
+  for (int c : m.candidates) {
+    m.ranked.emplace_back(m.votes[static_cast<size_t>(c)], c);
+    if (m.votes[static_cast<size_t>(c)] >= cfg.min_votes) ++res.counters.appearance_ranked;
+  }
+  // Most votes first; ties keep the sampling order (nearest the position prior first). The top_k
+  // are taken with a non-maximum suppression over neighbouring keyframes (they see the same place).
+  std::stable_sort(
+      m.ranked.begin(), m.ranked.end(),
+      [](const std::pair<int, int>& a, const std::pair<int, int>& b) { return a.first > b.first; });
+  m.selected.clear();
+  for (const auto& [v, c] : m.ranked) {
+    (void)v;
+    if (static_cast<int>(m.selected.size()) >= cfg.top_k) break;
+    bool near_selected = false;
+    for (int o : m.selected) near_selected = near_selected || std::abs(o - c) <= cfg.nms_keyframes;
+    if (!near_selected) m.selected.push_back(c);
+  }
+  m.current_index.build(*q.features);
+
+  auto yaw_ok = [&](const Eigen::Isometry3d& T_prior_world) {
+    if (!q.yaw_valid) return true;
+    const double gate = cfg.yaw_gate_sigmas * q.yaw_sigma_rad + cfg.yaw_gate_margin_rad;
+    return std::abs(wrap_pi(yaw_of(T_prior_world.linear()) - q.yaw_prior_rad)) <= gate;
+  };
+  // Merges near-duplicate seeds (keeps the one with more ORB inliers); true when `h` was added.
+  auto add_hypothesis = [&](const Hypothesis& h) {
+    for (Hypothesis& o : m.hypotheses) {
+      const PoseDistance d = pose_distance(o.T_seed, h.T_seed, m.centroid_world);
+      if (d.m <= cfg.dedup_m && d.rad <= cfg.dedup_rad) {
+        if (h.orb_inliers > o.orb_inliers) o = h;
+        return false;
+      }
+    }
+    m.hypotheses.push_back(h);
+    return true;
+  };
+
+  auto seconds_since = [](std::chrono::steady_clock::time_point t) {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
+  };
+  res.appearance_s = seconds_since(t0);
+  const auto t_geometry = std::chrono::steady_clock::now();
+
+  // ---- c. geometry: RANSAC of the candidate's 3D keypoints (prior frame) against the current keypoints ----
+  m.hypotheses.clear();
+  for (int c : m.selected) {
+    if (m.votes[static_cast<size_t>(c)] < cfg.min_votes) continue;
+    const PriorKeyframe& kf = kfs[static_cast<size_t>(c)];
+    const int n = m.current_index.match(kf.features, m.matches.data(), m.max_features);
+    int nc = 0;
+    for (int i = 0; i < n; ++i) {
+      const estimation::Feature& fp = kf.features.feature(m.matches[static_cast<size_t>(i)].query);
+      const estimation::Feature& fc = q.features->feature(m.matches[static_cast<size_t>(i)].train);
+      if (!(fp.depth_m > 0)) continue;
+      estimation::Correspondence& corr = m.correspondences[static_cast<size_t>(nc++)];
+      corr.p_world = kf.T_prior_cam * fp.p_cam_m;  // the solver's "world" is the prior frame
+      corr.uv_px = {fc.u_px, fc.v_px};
+      corr.depth_m = fc.depth_m;
+      corr.octave = fc.octave;
+    }
+    if (nc < cfg.min_orb_inliers) continue;
+    ++res.counters.ransac_runs;
+    const estimation::PoseRansacResult rr =
+        m.ransac.solve(m.correspondences.data(), nc, m.K, cfg.ransac, m.inlier_mask.data());
+    if (!rr.ok || rr.inliers < cfg.min_orb_inliers || !finite_pose(rr.T_cam_world)) continue;
+    ++res.counters.ransac_hypotheses;
+    Hypothesis h;
+    h.T_seed = rr.T_cam_world.inverse() * q.T_world_cam.inverse();  // T_prior_cam * T_cam_world
+    h.from_orb = true;
+    h.orb_inliers = rr.inliers;
+    if (!yaw_ok(h.T_seed)) {
+      ++res.counters.yaw_rejected;
+      continue;
+    }
+    add_hypothesis(h);
+  }
+  const bool have_orb = !m.hypotheses.empty();
+
+  // Seeds without ORB: the position prior (GNSS), and the paper's candidate keyframe poses.
+  const Eigen::Vector3d p_world_cam = q.T_world_cam.translation();
+  auto seed_at = [&](const Eigen::Matrix3d& R_prior_world, const Eigen::Vector3d& p_prior_cam) {
+    Hypothesis h;
+    h.T_seed.linear() = R_prior_world;
+    h.T_seed.translation() = p_prior_cam - R_prior_world * p_world_cam;
+    if (add_hypothesis(h)) ++res.counters.fallback_seeds;
+  };
+  if (q.position.valid && q.yaw_valid) {
+    seed_at(rot_z(q.yaw_prior_rad), q.position.p_prior_m);
+  } else if (q.position.valid && !have_orb) {
+    for (int k = 0; k < cfg.yaw_sweep_steps; ++k) {
+      seed_at(rot_z(2.0 * kPi * k / cfg.yaw_sweep_steps), q.position.p_prior_m);
+    }
+  }
+  if (!have_orb && cfg.fallback_keyframe_seeds) {
+    for (int c : m.selected) {
+      const PriorKeyframe& kf = kfs[static_cast<size_t>(c)];
+      if (q.yaw_valid) {
+        seed_at(rot_z(q.yaw_prior_rad), kf.T_prior_cam.translation());
+      } else {
+        // "The initial parameters are set to the pose of the current key frame": the current camera
+        // is assumed where the candidate's was, looking the same way.
+        Hypothesis h;
+        h.T_seed = kf.T_prior_cam * q.T_world_cam.inverse();
+        if (add_hypothesis(h)) ++res.counters.fallback_seeds;
+      }
+    }
+  }
+
+  res.geometry_s = seconds_since(t_geometry);
+
+  // ---- d. NDT, coarse, from every hypothesis ----
+  for (Hypothesis& h : m.hypotheses) {
+    PointsView target;
+    const core::Status st = m.gather_target(prior, h.T_seed * m.centroid_world, &target, &res.counters);
+    if (!st.ok()) return done(RelocalizationReason::kPriorMapError, st.message());
+    ++res.counters.ndt_runs;
+    h.coarse = m.ndt_coarse.align(target, source, h.T_seed);
+    if (h.coarse.converged) {
+      h.coarse_score = h.coarse.score / m.n_source;
+      ++res.counters.ndt_converged;
+    }
+  }
+  // The keep_best best converged, distinct up to dedup, aligned again at the fine resolutions.
+  m.order.resize(m.hypotheses.size());
+  std::iota(m.order.begin(), m.order.end(), 0);
+  std::stable_sort(m.order.begin(), m.order.end(), [&](int a, int b) {
+    return m.hypotheses[static_cast<size_t>(a)].coarse_score >
+           m.hypotheses[static_cast<size_t>(b)].coarse_score;
+  });
+  int picked = 0;
+  for (int i : m.order) {
+    Hypothesis& h = m.hypotheses[static_cast<size_t>(i)];
+    if (picked >= cfg.keep_best || h.coarse_score < 0) break;
+    bool duplicate = false;
+    for (const Hypothesis& o : m.hypotheses) {
+      if (!o.fine_run) continue;
+      const PoseDistance d =
+          pose_distance(o.coarse.T_target_source, h.coarse.T_target_source, m.centroid_world);
+      duplicate = duplicate || (d.m <= cfg.dedup_m && d.rad <= cfg.dedup_rad);
+    }
+    if (duplicate) continue;
+    PointsView target;
+    const core::Status st =
+        m.gather_target(prior, h.coarse.T_target_source * m.centroid_world, &target, &res.counters);
+    if (!st.ok()) return done(RelocalizationReason::kPriorMapError, st.message());
+    ++res.counters.ndt_runs;
+    h.fine_run = true;
+    h.fine = m.ndt_fine.align(target, source, h.coarse.T_target_source);
+    if (h.fine.converged) h.fine_score = h.fine.score / m.n_source;
+    ++picked;
+  }
+  if (picked == 0) {
+    return done(RelocalizationReason::kNdtFailed,
+                "relocalizer: none of " + std::to_string(m.hypotheses.size()) +
+                    " hypotheses converged in NDT (" + std::to_string(res.counters.ransac_hypotheses) +
+                    " from ORB, " + std::to_string(res.counters.fallback_seeds) + " seeds)");
+  }
+  // The best fine result; the scores of the fine-run ones, best first.
+  const Hypothesis* best = nullptr;
+  std::array<double, 3> scores{0, 0, 0};
+  int ns = 0;
+  for (const Hypothesis& h : m.hypotheses) {
+    if (!h.fine_run) continue;
+    if (ns < 3) scores[static_cast<size_t>(ns++)] = std::max(0.0, h.fine_score);
+    if (h.fine_score >= 0 && (best == nullptr || h.fine_score > best->fine_score)) best = &h;
+  }
+  std::sort(scores.begin(), scores.end(), [](double a, double b) { return a > b; });
+  res.best_scores = scores;
+  if (best == nullptr) {
+    std::string why;
+    for (const Hypothesis& h : m.hypotheses) {
+      if (h.fine_run) why += std::string(why.empty() ? "" : ", ") + ndt_failure_name(h.fine.failure);
+    }
+    return done(RelocalizationReason::kNdtFailed,
+                "relocalizer: the fine NDT did not converge from any of the " + std::to_string(picked) +
+                    " best coarse poses (" + why + ")");
+  }
+
+  // ---- e. acceptance ----
+  const Eigen::Isometry3d T = best->fine.T_target_source;
+  res.T_prior_world = T;
+  res.best_inlier_ratio = best->fine.inlier_ratio;
+  res.best_from_orb = best->from_orb;
+  res.best_orb_inliers = best->orb_inliers;
+  if (best->fine.inlier_ratio < cfg.min_inlier_ratio) {
+    return done(RelocalizationReason::kLowInlierRatio,
+                format("relocalizer: best fit explains %.0f %% of the local map (< %.0f %%)",
+                       100.0 * best->fine.inlier_ratio, 100.0 * cfg.min_inlier_ratio));
+  }
+  if (!yaw_ok(T)) {
+    return done(
+        RelocalizationReason::kPriorDisagreement,
+        format("relocalizer: best fit's relative yaw %.1f deg disagrees with the magnetometer's %.1f deg",
+               yaw_of(T.linear()) * kRadToDeg, q.yaw_prior_rad * kRadToDeg));
+  }
+  if (q.position.valid) {
+    const Eigen::Vector3d p = T * p_world_cam;
+    const double d = std::hypot(p.x() - q.position.p_prior_m.x(), p.y() - q.position.p_prior_m.y());
+    const double gate = cfg.position_gate_sigmas * q.position.sigma_m + cfg.position_gate_margin_m;
+    if (d > gate) {
+      return done(RelocalizationReason::kPriorDisagreement,
+                  format("relocalizer: best fit puts the camera %.2f m from the position prior (gate %.2f m)",
+                         d, gate));
+    }
+  }
+  if (best->from_orb) {
+    const PoseDistance d = pose_distance(best->T_seed, T, m.centroid_world);
+    if (d.m > cfg.max_ndt_correction_m || d.rad > cfg.max_ndt_correction_rad) {
+      return done(
+          RelocalizationReason::kPriorDisagreement,
+          format("relocalizer: NDT moved the ORB pose by %.2f m / %.1f deg (> %.2f m / %.1f deg)", d.m,
+                 d.rad * kRadToDeg, cfg.max_ndt_correction_m, cfg.max_ndt_correction_rad * kRadToDeg));
+    }
+  }
+  // Appearance agrees: NDT alone cannot tell symmetric places apart (the lab's two bench rows).
+  res.verified_matches = m.verify(T, q, *prior);
+  if (cfg.require_orb_verification && res.verified_matches < cfg.min_verified_matches) {
+    return done(RelocalizationReason::kNotVerified,
+                "relocalizer: only " + std::to_string(res.verified_matches) +
+                    " ORB matches of nearby prior keyframes agree with the best fit (need " +
+                    std::to_string(cfg.min_verified_matches) + ")");
+  }
+  // Unambiguous: the best beats every distinct competitor by the margin, fine and coarse.
+  auto distinct = [&](const Eigen::Isometry3d& A) {
+    const PoseDistance d = pose_distance(A, T, m.centroid_world);
+    return d.m > cfg.distinct_m || d.rad > cfg.distinct_rad;
+  };
+  double fine_rival = 0, coarse_rival = 0;
+  for (const Hypothesis& h : m.hypotheses) {
+    if (h.fine_run && h.fine_score >= 0 && distinct(h.fine.T_target_source)) {
+      fine_rival = std::max(fine_rival, h.fine_score);
+    }
+    if (h.coarse_score >= 0 && distinct(h.coarse.T_target_source))
+      coarse_rival = std::max(coarse_rival, h.coarse_score);
+  }
+  const double fine_margin = (best->fine_score - fine_rival) / best->fine_score;
+  const double coarse_margin =
+      best->coarse_score > 0 ? (best->coarse_score - coarse_rival) / best->coarse_score : -1.0;
+  res.score_margin = std::min(fine_margin, coarse_margin);
+  if (!(res.score_margin >= cfg.min_score_margin)) {
+    return done(
+        RelocalizationReason::kAmbiguous,
+        format("relocalizer: a distinct pose fits almost as well (score margin fine %.2f, coarse %.2f, "
+               "need %.2f)",
+               fine_margin, coarse_margin, cfg.min_score_margin));
+  }
+  return done(RelocalizationReason::kLocalized,
+              format("relocalizer: localized, inlier ratio %.2f, score margin %.2f, %.0f ORB inliers",
+                     best->fine.inlier_ratio, res.score_margin, best->orb_inliers));
+}
+
+}  // namespace hwr::recon

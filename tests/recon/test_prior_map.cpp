@@ -1,0 +1,389 @@
+// The lazily loaded prior map (issue #6 item 1). A small store of three segments, far apart, is
+// written with MapStore and opened as a prior map. Oracles: the keyframes come back with their
+// poses, descriptors and eq. 3 back-projections (recomputed here in double from the stored u, v,
+// depth); no cloud is read at open; points_near returns exactly the points a brute-force search
+// over every segment (moved to the prior frame with T_world_segment here) finds in the ball; a
+// point budget evicts the least-recently-used cloud and skips what does not fit; a damaged
+// keyframes.bin fails open() and a damaged cloud.bin fails the query that needs it, each with
+// kCorruptData naming the file, and a missing store is kNotFound naming the path.
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <random>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "hwr/estimation/descriptor.hpp"
+#include "hwr/recon/map_store.hpp"
+#include "hwr/recon/prior_map.hpp"
+
+namespace hwr::recon {
+namespace {
+
+namespace fs = std::filesystem;
+
+class TempDir {
+ public:
+  TempDir() {
+    std::string templ = (fs::temp_directory_path() / "hwr_prior_map_XXXXXX").string();
+    const char* made = ::mkdtemp(templ.data());
+    EXPECT_NE(made, nullptr) << "mkdtemp failed";
+    path_ = templ;
+  }
+  ~TempDir() {
+    std::error_code ec;
+    fs::remove_all(path_, ec);
+  }
+  std::string store() const { return path_ + "/store"; }
+
+ private:
+  std::string path_;
+};
+
+StoreMetadata metadata() {
+  StoreMetadata m;
+  m.run_id = "prior-test";
+  m.intrinsics.width = 640;
+  m.intrinsics.height = 480;
+  m.intrinsics.fx = 525;
+  m.intrinsics.fy = 520;
+  m.intrinsics.cx = 319.5;
+  m.intrinsics.cy = 239.5;
+  return m;
+}
+
+constexpr int kSegments = 3;
+constexpr int kPointsPerSegment = 2000;
+constexpr int kKeyframesPerSegment = 2;
+constexpr int kFeaturesPerKeyframe = 50;
+
+Eigen::Isometry3d segment_pose(int k) {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = Eigen::AngleAxisd(0.3 + 0.7 * k, Eigen::Vector3d::UnitZ()).toRotationMatrix() *
+               Eigen::AngleAxisd(0.05 * k, Eigen::Vector3d::UnitX()).toRotationMatrix();
+  T.translation() = Eigen::Vector3d(30.0 * k, -5.0 + 2.0 * k, 0.5 * k);
+  return T;
+}
+
+// Segments 30 m apart, each a cloud of points within 2 m of its origin and two keyframes near it.
+std::vector<SegmentRecord> make_segments() {
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<float> unit(-1.f, 1.f);
+  std::uniform_int_distribution<int> byte(0, 255);
+  std::vector<SegmentRecord> out;
+  for (int k = 0; k < kSegments; ++k) {
+    SegmentRecord s;
+    s.segment_id = static_cast<uint32_t>(k);
+    s.T_world_segment = segment_pose(k);
+    for (int i = 0; i < kPointsPerSegment; ++i) {
+      CloudPoint p;
+      p.x_m = 2.f * unit(rng);
+      p.y_m = 2.f * unit(rng);
+      p.z_m = 2.f * unit(rng);
+      p.r = static_cast<uint8_t>(k);
+      p.g = static_cast<uint8_t>(i >> 8);
+      p.b = static_cast<uint8_t>(i & 0xff);
+      s.points_segment.push_back(p);
+    }
+    for (int j = 0; j < kKeyframesPerSegment; ++j) {
+      StoredKeyframe kf;
+      kf.id = k * kKeyframesPerSegment + j;
+      kf.t_ns = 1000 + kf.id;
+      kf.T_world_cam = s.T_world_segment;
+      kf.T_world_cam.translation() += Eigen::Vector3d(0.5 * j, 0.1 * j, 0.0);
+      kf.gnss_valid = j == 0;
+      kf.lat_deg = 48.1 + k;
+      kf.lon_deg = 11.5;
+      kf.alt_m = 500;
+      kf.mag_valid = true;
+      kf.mag_imu_uT = Eigen::Vector3d(20, 1, -43);
+      for (int f = 0; f < kFeaturesPerKeyframe; ++f) {
+        StoredFeature sf;
+        sf.u_px = 10.f + 12.3f * f;
+        sf.v_px = 20.f + 8.1f * f;
+        sf.depth_m = f % 5 == 0 ? 0.f : 0.5f + 0.07f * f;
+        sf.octave = static_cast<uint8_t>(f % 4);
+        kf.features.push_back(sf);
+        for (int b = 0; b < estimation::kOrbDescriptorBytes; ++b) {
+          kf.descriptors.push_back(static_cast<uint8_t>(byte(rng)));
+        }
+      }
+      s.keyframes.push_back(kf);
+    }
+    out.push_back(std::move(s));
+  }
+  return out;
+}
+
+void write_store(const std::string& dir, const std::vector<SegmentRecord>& segments) {
+  auto store = MapStore::open(dir, metadata());
+  ASSERT_TRUE(store.ok()) << store.status().message();
+  for (const SegmentRecord& s : segments) ASSERT_TRUE(store->write_segment(s).ok());
+}
+
+// A point's identity travels in its colour: r = segment, (g, b) = index in the segment.
+int point_id(const CloudPoint& p) { return (p.r << 16) | (p.g << 8) | p.b; }
+
+// Brute force over every segment, moved to the prior frame here in double: the ids of the points
+// within radius_m of c, those within radius_m - 1e-4 (must be returned) and radius_m + 1e-4 (may be:
+// float and double disagree on the sphere itself), and every point's prior-frame position.
+struct BallOracle {
+  std::vector<int> inner, outer;
+  std::vector<Eigen::Vector3d> p_prior;  // by id
+};
+BallOracle expected_near(const std::vector<SegmentRecord>& segments, const Eigen::Vector3d& c,
+                         double radius_m) {
+  BallOracle e;
+  e.p_prior.resize(static_cast<size_t>(kSegments) << 16);
+  for (const SegmentRecord& s : segments) {
+    for (const CloudPoint& p : s.points_segment) {
+      const Eigen::Vector3d q = s.T_world_segment * Eigen::Vector3d(p.x_m, p.y_m, p.z_m);
+      e.p_prior[static_cast<size_t>(point_id(p))] = q;
+      const double d = (q - c).norm();
+      if (d <= radius_m - 1e-4) e.inner.push_back(point_id(p));
+      if (d <= radius_m + 1e-4) e.outer.push_back(point_id(p));
+    }
+  }
+  std::sort(e.inner.begin(), e.inner.end());
+  std::sort(e.outer.begin(), e.outer.end());
+  return e;
+}
+
+void expect_same_points(const BallOracle& e, const std::vector<CloudPoint>& got) {
+  std::vector<int> ids;
+  double worst_m = 0;
+  for (const CloudPoint& p : got) {
+    ids.push_back(point_id(p));
+    const Eigen::Vector3d& q = e.p_prior[static_cast<size_t>(point_id(p))];
+    worst_m = std::max(worst_m, (Eigen::Vector3d(p.x_m, p.y_m, p.z_m) - q).norm());
+  }
+  std::sort(ids.begin(), ids.end());
+  EXPECT_TRUE(std::adjacent_find(ids.begin(), ids.end()) == ids.end()) << "a point returned twice";
+  EXPECT_TRUE(std::includes(ids.begin(), ids.end(), e.inner.begin(), e.inner.end()))
+      << "a point inside the ball is missing";
+  EXPECT_TRUE(std::includes(e.outer.begin(), e.outer.end(), ids.begin(), ids.end()))
+      << "a point outside the ball was returned";
+  EXPECT_LT(worst_m, 1e-4) << "prior-frame position vs T_world_segment * p in double";
+}
+
+void flip_byte(const std::string& path, size_t offset) {
+  std::fstream f(path, std::ios::in | std::ios::out | std::ios::binary);
+  ASSERT_TRUE(f.good()) << path;
+  f.seekg(static_cast<std::streamoff>(offset));
+  char c = 0;
+  f.read(&c, 1);
+  c = static_cast<char>(c ^ 0x5a);
+  f.seekp(static_cast<std::streamoff>(offset));
+  f.write(&c, 1);
+}
+
+TEST(PriorMap, GivenAStoreWhenOpenedThenKeyframesAreIndexedAndNoCloudIsRead) {
+  TempDir tmp;
+  const std::vector<SegmentRecord> segments = make_segments();
+  write_store(tmp.store(), segments);
+  auto map = PriorMap::open(tmp.store());
+  ASSERT_TRUE(map.ok()) << map.status().message();
+  EXPECT_EQ(map->counters().cloud_loads, 0u);
+  EXPECT_EQ(map->counters().loaded_points, 0);
+  ASSERT_EQ(map->segments().size(), static_cast<size_t>(kSegments));
+  ASSERT_EQ(map->keyframes().size(), static_cast<size_t>(kSegments * kKeyframesPerSegment));
+  const hal::PinholeIntrinsics K = metadata().intrinsics;
+  for (int k = 0; k < kSegments; ++k) {
+    const PriorSegment& s = map->segments()[static_cast<size_t>(k)];
+    EXPECT_EQ(s.segment_id, static_cast<uint32_t>(k));
+    EXPECT_TRUE(s.T_prior_segment.isApprox(segment_pose(k), 0.0));
+    EXPECT_EQ(s.points, kPointsPerSegment);
+    EXPECT_FALSE(s.loaded);
+    EXPECT_EQ(s.first_keyframe, k * kKeyframesPerSegment);
+    EXPECT_EQ(s.keyframe_count, kKeyframesPerSegment);
+    for (int j = 0; j < kKeyframesPerSegment; ++j) {
+      const StoredKeyframe& in = segments[static_cast<size_t>(k)].keyframes[static_cast<size_t>(j)];
+      const PriorKeyframe& kf = map->keyframes()[static_cast<size_t>(k * kKeyframesPerSegment + j)];
+      EXPECT_TRUE(s.keyframe_box_prior.contains(in.T_world_cam.translation()));
+      EXPECT_EQ(kf.segment_id, static_cast<uint32_t>(k));
+      EXPECT_EQ(kf.id, in.id);
+      EXPECT_EQ(kf.t_ns, in.t_ns);
+      EXPECT_TRUE(kf.T_prior_cam.isApprox(in.T_world_cam, 0.0));
+      EXPECT_EQ(kf.gnss_valid, in.gnss_valid);
+      EXPECT_EQ(kf.lat_deg, in.lat_deg);
+      EXPECT_TRUE(kf.mag_imu_uT.isApprox(in.mag_imu_uT, 0.0));
+      ASSERT_EQ(kf.features.size(), kFeaturesPerKeyframe);
+      for (int f = 0; f < kFeaturesPerKeyframe; ++f) {
+        const StoredFeature& sf = in.features[static_cast<size_t>(f)];
+        const estimation::Feature& e = kf.features.feature(f);
+        EXPECT_EQ(e.u_px, sf.u_px);
+        EXPECT_EQ(e.octave, sf.octave);
+        EXPECT_EQ(e.depth_m, sf.depth_m);
+        // Eq. (3) in double, from the stored floats.
+        const Eigen::Vector3d p_expected =
+            sf.depth_m > 0 ? Eigen::Vector3d((sf.u_px - K.cx) * sf.depth_m / K.fx,
+                                             (sf.v_px - K.cy) * sf.depth_m / K.fy, sf.depth_m)
+                           : Eigen::Vector3d::Zero();
+        EXPECT_LT((e.p_cam_m - p_expected).norm(), 1e-9);
+        EXPECT_TRUE(std::equal(kf.features.descriptor(f), kf.features.descriptor(f) + 32,
+                               in.descriptors.begin() + 32 * f));
+      }
+    }
+  }
+}
+
+TEST(PriorMap, GivenAPositionWhenPointsNearThenExactlyThePointsOfTheBallInThePriorFrame) {
+  TempDir tmp;
+  const std::vector<SegmentRecord> segments = make_segments();
+  write_store(tmp.store(), segments);
+  PriorMapConfig config;
+  config.cloud_reach_m = 2.5;  // the synthetic clouds lie within 2 sqrt(3) m of the keyframes
+  auto map = PriorMap::open(tmp.store(), config);
+  ASSERT_TRUE(map.ok()) << map.status().message();
+  std::vector<CloudPoint> out;
+
+  // The whole of segment 1 (its cloud is within 3.5 m of its origin) and nothing else.
+  const Eigen::Vector3d c1 = segment_pose(1).translation();
+  auto st = map->points_near(c1, 5.0, &out);
+  ASSERT_TRUE(st.ok()) << st.status().message();
+  EXPECT_EQ(st->segments_used, 1);
+  EXPECT_EQ(out.size(), static_cast<size_t>(kPointsPerSegment));
+  expect_same_points(expected_near(segments, c1, 5.0), out);
+  for (const CloudPoint& p : out) EXPECT_EQ(p.r, 1);  // colour travels with the point
+  EXPECT_EQ(map->counters().cloud_loads, 1u);
+  EXPECT_TRUE(map->segments()[1].loaded);
+  EXPECT_FALSE(map->segments()[0].loaded);
+
+  // Part of segment 2's cloud: a ball of 1.5 m about a point 1 m off its origin.
+  const Eigen::Vector3d c2 = segment_pose(2) * Eigen::Vector3d(1.0, 0.3, -0.2);
+  st = map->points_near(c2, 1.5, &out);
+  ASSERT_TRUE(st.ok());
+  const BallOracle e2 = expected_near(segments, c2, 1.5);
+  EXPECT_GT(e2.inner.size(), 100u);
+  EXPECT_LT(e2.outer.size(), static_cast<size_t>(kPointsPerSegment));
+  expect_same_points(e2, out);
+
+  // Again: served from memory.
+  st = map->points_near(c2, 1.5, &out);
+  ASSERT_TRUE(st.ok());
+  EXPECT_EQ(map->counters().cloud_loads, 2u);
+  EXPECT_EQ(map->counters().cloud_evictions, 0u);
+
+  // Far from everything: nothing, nothing loaded.
+  st = map->points_near(Eigen::Vector3d(15.0, 40.0, 0.0), 3.0, &out);
+  ASSERT_TRUE(st.ok());
+  EXPECT_TRUE(out.empty());
+  EXPECT_EQ(st->segments_near, 0);
+  EXPECT_EQ(map->counters().cloud_loads, 2u);
+
+  // Bad arguments.
+  EXPECT_EQ(map->points_near(c1, 0.0, &out).status().code(), core::ErrorCode::kInvalidArgument);
+  EXPECT_EQ(map->points_near(Eigen::Vector3d(NAN, 0, 0), 1.0, &out).status().code(),
+            core::ErrorCode::kInvalidArgument);
+}
+
+TEST(PriorMap, GivenABudgetOfOneSegmentThenTheLeastRecentlyUsedCloudIsEvicted) {
+  TempDir tmp;
+  const std::vector<SegmentRecord> segments = make_segments();
+  write_store(tmp.store(), segments);
+  PriorMapConfig config;
+  config.cloud_reach_m = 2.5;
+  config.max_loaded_points = kPointsPerSegment + kPointsPerSegment / 2;  // room for one cloud
+  auto map = PriorMap::open(tmp.store(), config);
+  ASSERT_TRUE(map.ok());
+  std::vector<CloudPoint> out;
+  const Eigen::Vector3d c[3] = {segment_pose(0).translation(), segment_pose(1).translation(),
+                                segment_pose(2).translation()};
+  ASSERT_TRUE(map->points_near(c[0], 4.0, &out).ok());
+  ASSERT_TRUE(map->points_near(c[1], 4.0, &out).ok());
+  EXPECT_EQ(map->counters().cloud_loads, 2u);
+  EXPECT_EQ(map->counters().cloud_evictions, 1u);
+  EXPECT_FALSE(map->segments()[0].loaded);
+  EXPECT_TRUE(map->segments()[1].loaded);
+  EXPECT_LE(map->counters().loaded_points, config.max_loaded_points);
+  EXPECT_EQ(map->counters().loaded_segments, 1);
+  expect_same_points(expected_near(segments, c[1], 4.0), out);
+  // Segment 0 again: read again, segment 1 goes.
+  ASSERT_TRUE(map->points_near(c[0], 4.0, &out).ok());
+  EXPECT_EQ(map->counters().cloud_loads, 3u);
+  EXPECT_EQ(map->counters().cloud_evictions, 2u);
+  expect_same_points(expected_near(segments, c[0], 4.0), out);
+
+  // A ball over segments 0 and 1 with room for one: the nearer one (0) is searched, 1 is skipped
+  // and said so; the answer is partial, never points of a cloud that was not read.
+  const Eigen::Vector3d between = c[0] + 0.2 * (c[1] - c[0]);
+  const double radius = (c[1] - between).norm() + 0.5;
+  auto st = map->points_near(between, radius, &out);
+  ASSERT_TRUE(st.ok());
+  EXPECT_EQ(st->segments_near, 2);
+  EXPECT_EQ(st->segments_used, 1);
+  EXPECT_EQ(st->segments_over_budget, 1);
+  std::vector<SegmentRecord> only0(segments.begin(), segments.begin() + 1);
+  expect_same_points(expected_near(only0, between, radius), out);
+  EXPECT_LE(map->counters().loaded_points, config.max_loaded_points);
+
+  // With room for all three, the same ball gives both segments' points.
+  PriorMapConfig big = config;
+  big.max_loaded_points = 3 * kPointsPerSegment;
+  auto map2 = PriorMap::open(tmp.store(), big);
+  ASSERT_TRUE(map2.ok());
+  st = map2->points_near(between, radius, &out);
+  ASSERT_TRUE(st.ok());
+  EXPECT_EQ(st->segments_used, 2);
+  expect_same_points(expected_near(segments, between, radius), out);
+}
+
+TEST(PriorMap, GivenAMissingOrDamagedStoreThenTheErrorNamesTheFile) {
+  TempDir tmp;
+  auto missing = PriorMap::open(tmp.store() + "/nope");
+  ASSERT_FALSE(missing.ok());
+  EXPECT_EQ(missing.status().code(), core::ErrorCode::kNotFound);
+  EXPECT_NE(missing.status().message().find("nope"), std::string::npos) << missing.status().message();
+
+  const std::vector<SegmentRecord> segments = make_segments();
+  write_store(tmp.store(), segments);
+  // A damaged cloud is found when it is needed (the clouds are lazy), not at open.
+  const std::string cloud1 = tmp.store() + "/segments/seg_000001/cloud.bin";
+  flip_byte(cloud1, 48 + 100);
+  PriorMapConfig config;
+  config.cloud_reach_m = 2.5;
+  auto map = PriorMap::open(tmp.store(), config);
+  ASSERT_TRUE(map.ok()) << map.status().message();
+  std::vector<CloudPoint> out;
+  ASSERT_TRUE(map->points_near(segment_pose(0).translation(), 4.0, &out).ok());
+  auto bad = map->points_near(segment_pose(1).translation(), 4.0, &out);
+  ASSERT_FALSE(bad.ok());
+  EXPECT_EQ(bad.status().code(), core::ErrorCode::kCorruptData);
+  EXPECT_NE(bad.status().message().find(cloud1), std::string::npos) << bad.status().message();
+  EXPECT_TRUE(out.empty());
+
+  // A damaged keyframes.bin fails open().
+  const std::string kf2 = tmp.store() + "/segments/seg_000002/keyframes.bin";
+  flip_byte(kf2, 48 + 20);
+  auto broken = PriorMap::open(tmp.store(), config);
+  ASSERT_FALSE(broken.ok());
+  EXPECT_EQ(broken.status().code(), core::ErrorCode::kCorruptData);
+  EXPECT_NE(broken.status().message().find(kf2), std::string::npos) << broken.status().message();
+}
+
+TEST(MapStore, GivenASegmentWhenReadKeyframesThenKeyframesWithoutTheCloud) {
+  TempDir tmp;
+  const std::vector<SegmentRecord> segments = make_segments();
+  write_store(tmp.store(), segments);
+  auto store = MapStore::open_existing(tmp.store());
+  ASSERT_TRUE(store.ok());
+  // Even with its cloud gone: keyframes.bin and segment.yaml are all it reads.
+  fs::remove(tmp.store() + "/segments/seg_000001/cloud.bin");
+  auto rec = store->read_keyframes(1);
+  ASSERT_TRUE(rec.ok()) << rec.status().message();
+  EXPECT_TRUE(rec->points_segment.empty());
+  ASSERT_EQ(rec->keyframes.size(), static_cast<size_t>(kKeyframesPerSegment));
+  EXPECT_EQ(rec->keyframes[1].descriptors, segments[1].keyframes[1].descriptors);
+  EXPECT_TRUE(rec->T_world_segment.isApprox(segment_pose(1), 0.0));
+  EXPECT_EQ(store->read_segment(1).status().code(), core::ErrorCode::kCorruptData);
+  EXPECT_EQ(store->read_keyframes(7).status().code(), core::ErrorCode::kNotFound);
+}
+
+}  // namespace
+}  // namespace hwr::recon

@@ -1,0 +1,531 @@
+// Relocalization against a prior map (issue #6 item 2) on the simulator's lab walk. The prior run is
+// the walk's first 80 s: keyframes every 12 frames with ORB features and rendered depth at their
+// ground-truth poses (the prior frame is the sim's world), cut into segments of 25 keyframes whose
+// clouds (2 cm voxels, segment frame) and keyframes go to a MapStore on disk. The "current" run sees
+// other frames (6 frames after each prior keyframe, so no image is shared with the prior) whose
+// poses are the truth moved by a known T_prior_world (3 m, 40 deg yaw, 2 deg tilt); its local map is
+// those frames' clouds in the current world frame.
+// Oracles: the recovered T_prior_world equals the applied one within 2 cm / 0.3 deg, without priors
+// and with a position and/or yaw prior; queries from where the prior never was (the prior cut to
+// the walk's first 40 s and the query at a bench it never faced, or frames of the outdoor scenario)
+// and a contradicting yaw prior give "not localized", never a pose; the candidate sampling keeps
+// exactly the prior keyframes within 2 d + 3 sigma of the position prior.
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+#include <opencv2/imgproc.hpp>
+
+#include "hwr/core/arena.hpp"
+#include "hwr/estimation/orb_extractor.hpp"
+#include "hwr/recon/keyframe_cloud.hpp"
+#include "hwr/recon/map_store.hpp"
+#include "hwr/recon/prior_map.hpp"
+#include "hwr/recon/relocalizer.hpp"
+#include "hwr/recon/voxel_map.hpp"
+#include "hwr/sim/scenario.hpp"
+#include "hwr/sim/sim_live_log.hpp"
+
+namespace hwr::recon {
+namespace {
+
+namespace fs = std::filesystem;
+constexpr double kDeg = 3.14159265358979323846 / 180.0;
+constexpr int kMaxFeatures = 800;
+
+// One keyframe of a simulated walk: ORB features, the truth pose, and (query keyframes) its cloud.
+struct SimKeyframe {
+  SimKeyframe(int w, int h) : features(kMaxFeatures, w, h) {}
+  size_t frame = 0;
+  int64_t t_ns = 0;
+  Eigen::Isometry3d T_world_cam_true = Eigen::Isometry3d::Identity();
+  estimation::FrameFeatures features;
+  std::vector<CloudPoint> cloud_cam;  // query keyframes: every 4th pixel, camera frame
+};
+
+struct SimWalk {
+  hal::PinholeIntrinsics K;
+  std::vector<SimKeyframe> prior;        // the prior run's keyframes
+  std::vector<SegmentRecord> segments;   // ... as closed segments
+  std::vector<SimKeyframe> query_lab;    // the middle of the walk (44-47 s), seen by the prior
+  std::vector<SimKeyframe> query_north;  // at bench_n1 (81-87 s): never faced in the first 40 s
+  std::vector<SimKeyframe> query_outdoor;
+  // The lab-revisit run (another start, seed, exposure; a plate moved, a box removed): its frames
+  // near floor_butt_e, and where both runs' world frames sit in the scene.
+  std::vector<SimKeyframe> query_revisit;
+  Eigen::Isometry3d T_scene_world_lab = Eigen::Isometry3d::Identity();
+  Eigen::Isometry3d T_scene_world_revisit = Eigen::Isometry3d::Identity();
+};
+
+constexpr int kKeyframesPerSegment = 25;
+constexpr size_t kPriorStep = 12;
+constexpr size_t kPriorFirst = 30, kPriorLast = 2400;  // 1-80 s
+constexpr size_t kPartialPriorLast = 1200;             // 40 s
+
+StoredKeyframe to_stored(const SimKeyframe& kf, int id) {
+  StoredKeyframe s;
+  s.id = id;
+  s.t_ns = kf.t_ns;
+  s.T_world_cam = kf.T_world_cam_true;
+  for (int i = 0; i < kf.features.size(); ++i) {
+    const estimation::Feature& f = kf.features.feature(i);
+    s.features.push_back({f.u_px, f.v_px, f.depth_m, static_cast<uint8_t>(f.octave)});
+    s.descriptors.insert(s.descriptors.end(), kf.features.descriptor(i), kf.features.descriptor(i) + 32);
+  }
+  return s;
+}
+
+// A scenario simulated up to `last_frame`, with the world frame's place in the scene.
+struct Live {
+  sim::SimLiveLog log;
+  hal::PinholeIntrinsics K;
+};
+Live open_live(const std::string& scenario, size_t last_frame) {
+  auto spec = sim::load_scenario(scenario);
+  EXPECT_TRUE(spec.ok()) << spec.status().message();
+  auto live = sim::open_sim_live_log(spec.value(), (last_frame + 10) / spec->camera.rate_hz);
+  EXPECT_TRUE(live.ok()) << live.status().message();
+  Live l{std::move(live).value(), {}};
+  l.K = l.log.log.info.intrinsics;
+  return l;
+}
+
+// Renders `frames` into keyframes. With `segments`: the prior run, each keyframe's cloud (every
+// 4th pixel) fused into 2 cm voxels of segments of kKeyframesPerSegment keyframes (segment frame =
+// the first keyframe's camera); else query keyframes, each with its own cloud (camera frame).
+void render_keyframes(Live* live, const std::vector<size_t>& frames, std::vector<SimKeyframe>* out,
+                      std::vector<SegmentRecord>* segments) {
+  const hal::PinholeIntrinsics& K = live->K;
+  estimation::OrbConfig ocfg;
+  ocfg.max_features = kMaxFeatures;
+  estimation::GridOrbExtractor orb(ocfg, K.width, K.height);
+  KeyframeCloudConfig cloud_config;  // the mapper's for the prior (every 2nd pixel)
+  if (segments == nullptr) cloud_config.stride_px = 4;
+  core::Arena arena(keyframe_cloud_capacity_bytes(K.width, K.height, cloud_config));
+  auto voxels = VoxelMap::create({0.02, 1'000'000});
+  ASSERT_TRUE(voxels.ok());
+  hal::RgbdFrame f;
+  f.bgr.create(K.height, K.width, CV_8UC3);
+  f.depth_m.create(K.height, K.width, CV_32FC1);
+  cv::Mat gray;
+  SegmentRecord seg;
+  auto close_segment = [&] {
+    voxels->for_each([&](const Voxel& v) {
+      CloudPoint p;
+      p.x_m = v.x_m;
+      p.y_m = v.y_m;
+      p.z_m = v.z_m;
+      p.r = static_cast<uint8_t>(v.r);
+      p.g = static_cast<uint8_t>(v.g);
+      p.b = static_cast<uint8_t>(v.b);
+      seg.points_segment.push_back(p);
+    });
+    segments->push_back(std::move(seg));
+    seg = SegmentRecord();
+    voxels->clear();
+  };
+  for (size_t i : frames) {
+    ASSERT_LT(i, live->log.log.frame_t_ns.size());
+    ASSERT_TRUE(live->log.log.load_frame(i, &f).ok());
+    SimKeyframe kf(K.width, K.height);
+    kf.frame = i;
+    kf.t_ns = live->log.log.frame_t_ns[i];
+    kf.T_world_cam_true = live->log.groundtruth_T_world_cam_at_frames[i].T_world_body;
+    cv::cvtColor(f.bgr, gray, cv::COLOR_BGR2GRAY);
+    ASSERT_TRUE(orb.extract(gray, f.depth_m, K, &kf.features).ok());
+    arena.reset();
+    if (segments != nullptr) {
+      const int n = static_cast<int>(out->size());
+      if (n % kKeyframesPerSegment == 0) {
+        if (n > 0) close_segment();
+        seg.segment_id = static_cast<uint32_t>(segments->size());
+        seg.T_world_segment = kf.T_world_cam_true;
+      }
+      auto cloud = build_keyframe_cloud(
+          f.bgr, f.depth_m, K, seg.T_world_segment.inverse() * kf.T_world_cam_true, cloud_config, &arena);
+      ASSERT_TRUE(cloud.ok());
+      voxels->insert(cloud.value());
+      seg.keyframes.push_back(to_stored(kf, n));
+    } else {
+      auto cloud =
+          build_keyframe_cloud(f.bgr, f.depth_m, K, Eigen::Isometry3d::Identity(), cloud_config, &arena);
+      ASSERT_TRUE(cloud.ok());
+      kf.cloud_cam.assign(cloud->points, cloud->points + cloud->size);
+    }
+    out->push_back(std::move(kf));
+  }
+  if (segments != nullptr && !seg.keyframes.empty()) close_segment();
+}
+
+std::vector<size_t> frame_range(size_t first, size_t last, size_t step) {
+  std::vector<size_t> v;
+  for (size_t i = first; i < last; i += step) v.push_back(i);
+  return v;
+}
+
+const SimWalk& walk() {
+  static const SimWalk data = [] {
+    const auto t0 = std::chrono::steady_clock::now();
+    SimWalk w;
+    Live lab = open_live("lab", 2620);
+    w.K = lab.K;
+    w.T_scene_world_lab = lab.log.calibration.T_scene_world;
+    render_keyframes(&lab, frame_range(kPriorFirst, kPriorLast, kPriorStep), &w.prior, &w.segments);
+    // Half a step after prior keyframes: never the same image.
+    render_keyframes(&lab, frame_range(1326 + kPriorStep / 2, 1420, kPriorStep), &w.query_lab, nullptr);
+    render_keyframes(&lab, frame_range(2406, 2620, kPriorStep), &w.query_north, nullptr);
+    Live outdoor = open_live("outdoor", 700);
+    render_keyframes(&outdoor, frame_range(600, 700, kPriorStep), &w.query_outdoor, nullptr);
+    Live revisit = open_live("lab-revisit", 250);
+    w.T_scene_world_revisit = revisit.log.calibration.T_scene_world;
+    render_keyframes(&revisit, frame_range(90, 250, kPriorStep), &w.query_revisit, nullptr);
+    std::printf("[ reloc    ] sim data: %zu prior keyframes, %zu segments, loaded in %.1f s\n",
+                w.prior.size(), w.segments.size(),
+                std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+    return w;
+  }();
+  return data;
+}
+
+class TempDir {
+ public:
+  TempDir() {
+    std::string templ = (fs::temp_directory_path() / "hwr_reloc_XXXXXX").string();
+    const char* made = ::mkdtemp(templ.data());
+    EXPECT_NE(made, nullptr);
+    path_ = templ;
+  }
+  ~TempDir() {
+    std::error_code ec;
+    fs::remove_all(path_, ec);
+  }
+  const std::string& path() const { return path_; }
+
+ private:
+  std::string path_;
+};
+
+// The prior stores, written once: the whole prior run, and its first 40 s.
+struct PriorStores {
+  TempDir tmp;
+  std::string full, partial;
+};
+const PriorStores& stores() {
+  static const PriorStores* s = [] {
+    auto* p = new PriorStores;
+    const SimWalk& w = walk();
+    p->full = p->tmp.path() + "/full";
+    p->partial = p->tmp.path() + "/partial";
+    StoreMetadata meta;
+    meta.run_id = "lab-prior";
+    meta.intrinsics = w.K;
+    auto full = MapStore::open(p->full, meta);
+    auto partial = MapStore::open(p->partial, meta);
+    EXPECT_TRUE(full.ok() && partial.ok());
+    for (const SegmentRecord& seg : w.segments) {
+      EXPECT_TRUE(full->write_segment(seg).ok());
+      const size_t last_frame = kPriorFirst + kPriorStep * static_cast<size_t>(seg.keyframes.back().id);
+      if (last_frame < kPartialPriorLast) {
+        EXPECT_TRUE(partial->write_segment(seg).ok());
+      }
+    }
+    return p;
+  }();
+  return *s;
+}
+
+Eigen::Isometry3d known_T_prior_world() {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = (Eigen::AngleAxisd(40.0 * kDeg, Eigen::Vector3d::UnitZ()) *
+                Eigen::AngleAxisd(2.0 * kDeg, Eigen::Vector3d(1, 1, 0).normalized()))
+                   .toRotationMatrix();
+  T.translation() = Eigen::Vector3d(3.0, -1.0, 0.4);
+  return T;
+}
+
+// The current run: the query keyframes' poses in a world frame placed by T_prior_world, and their
+// clouds merged (5 cm voxels) in it. The query keyframe is the last one.
+struct CurrentRun {
+  std::vector<CloudPoint> local_map_world;
+  Eigen::Isometry3d T_world_cam = Eigen::Isometry3d::Identity();
+  Eigen::Isometry3d T_prior_cam_true = Eigen::Isometry3d::Identity();
+  double moved_m = 0;
+  const estimation::FrameFeatures* features = nullptr;
+};
+
+// T_prior_truth: the frame of the query keyframes' ground truth in the prior frame (identity for
+// the lab run's own frames).
+CurrentRun make_current(const std::vector<SimKeyframe>& query, const Eigen::Isometry3d& T_prior_world,
+                        const Eigen::Isometry3d& T_prior_truth = Eigen::Isometry3d::Identity()) {
+  CurrentRun run;
+  auto voxels = VoxelMap::create({0.05, 500'000});
+  EXPECT_TRUE(voxels.ok());
+  std::vector<CloudPoint> moved;
+  for (size_t k = 0; k < query.size(); ++k) {
+    const Eigen::Isometry3d T_prior_cam = T_prior_truth * query[k].T_world_cam_true;
+    const Eigen::Isometry3d T_world_cam = T_prior_world.inverse() * T_prior_cam;
+    moved.clear();
+    for (const CloudPoint& p : query[k].cloud_cam) {
+      const Eigen::Vector3d q = T_world_cam * Eigen::Vector3d(p.x_m, p.y_m, p.z_m);
+      CloudPoint o = p;
+      o.x_m = static_cast<float>(q.x());
+      o.y_m = static_cast<float>(q.y());
+      o.z_m = static_cast<float>(q.z());
+      moved.push_back(o);
+    }
+    voxels->insert(moved.data(), static_cast<int>(moved.size()));
+    if (k > 0) {
+      run.moved_m +=
+          (query[k].T_world_cam_true.translation() - query[k - 1].T_world_cam_true.translation()).norm();
+    }
+    run.T_world_cam = T_world_cam;
+    run.T_prior_cam_true = T_prior_cam;
+    run.features = &query[k].features;
+  }
+  voxels->for_each([&](const Voxel& v) {
+    CloudPoint p;
+    p.x_m = v.x_m;
+    p.y_m = v.y_m;
+    p.z_m = v.z_m;
+    run.local_map_world.push_back(p);
+  });
+  return run;
+}
+
+RelocalizationQuery make_query(const CurrentRun& run) {
+  RelocalizationQuery q;
+  q.features = run.features;
+  q.T_world_cam = run.T_world_cam;
+  q.local_map_world = {&run.local_map_world[0].x_m, static_cast<int>(run.local_map_world.size()), 4};
+  q.moved_m = run.moved_m;
+  return q;
+}
+
+double yaw_of(const Eigen::Isometry3d& T) { return std::atan2(T.linear()(1, 0), T.linear()(0, 0)); }
+
+struct Errors {
+  double m, deg;
+};
+Errors pose_errors(const Eigen::Isometry3d& estimate, const Eigen::Isometry3d& truth) {
+  const Eigen::Isometry3d d = truth.inverse() * estimate;
+  return {d.translation().norm(), Eigen::AngleAxisd(d.linear()).angle() / kDeg};
+}
+
+Relocalizer make_relocalizer() {
+  auto r = Relocalizer::create(RelocalizerConfig{}, walk().K, kMaxFeatures);
+  EXPECT_TRUE(r.ok()) << r.status().message();
+  return std::move(r).value();
+}
+
+void print_result(const char* what, const RelocalizationResult& r) {
+  std::printf(
+      "[ reloc    ] %-28s localized=%d reason='%s' %.3f s | candidates %d ranked %d ransac %d/%d "
+      "yaw-rejected %d "
+      "seeds %d ndt %d (conv %d) target %lld pts | scores %.3f %.3f %.3f inliers %.2f margin %.2f orb %d | "
+      "appearance %.3f (index %.3f) geometry %.3f ndt %.3f s | verified %d\n"
+      "[ reloc    ]   %s\n",
+      what, r.localized, relocalization_reason_name(r.reason), r.wall_s, r.counters.candidates,
+      r.counters.appearance_ranked, r.counters.ransac_hypotheses, r.counters.ransac_runs,
+      r.counters.yaw_rejected, r.counters.fallback_seeds, r.counters.ndt_runs, r.counters.ndt_converged,
+      static_cast<long long>(r.counters.target_points), r.best_scores[0], r.best_scores[1], r.best_scores[2],
+      r.best_inlier_ratio, r.score_margin, r.best_orb_inliers, r.appearance_s, r.index_s, r.geometry_s,
+      r.ndt_s, r.verified_matches, r.message.c_str());
+}
+
+// ---- a. candidate sampling (pure) ----
+
+TEST(Relocalizer, GivenAPositionPriorThenCandidatesAreTheKeyframesWithinTwiceTheDistanceMovedPlusThreeSigma) {
+  // 100 keyframes along x (0.1 .. 24.85 m, heights varying), and three off the axis.
+  std::vector<Eigen::Vector3d> p;
+  for (int i = 0; i < 100; ++i) p.emplace_back(0.25 * i + 0.1, 0.0, 0.3 * (i % 3));
+  p.emplace_back(10.0, 5.4, 0.0);   // 100: 5.4 m away horizontally
+  p.emplace_back(10.0, -5.6, 0.0);  // 101: 5.6 m
+  p.emplace_back(10.0, 0.0, 50.0);  // 102: straight above the prior (heights are not compared)
+  PositionPrior prior;
+  prior.valid = true;
+  prior.p_prior_m = Eigen::Vector3d(10.0, 0.0, 5.0);
+  prior.sigma_m = 0.5;
+  std::vector<int> out;
+  auto count_on_axis = [&] { return std::count_if(out.begin(), out.end(), [](int i) { return i < 100; }); };
+  auto has = [&](int i) { return std::find(out.begin(), out.end(), i) != out.end(); };
+
+  // Moved 2 m: radius 2 x 2 + 3 x 0.5 = 5.5 m, x in [4.5, 15.5]: i = 18 .. 61.
+  sample_candidates(p, prior, 2.0, 3.0, &out);
+  EXPECT_EQ(count_on_axis(), 44);
+  for (int i : out) {
+    if (i < 100) {
+      EXPECT_TRUE(i >= 18 && i <= 61) << i;
+    }
+  }
+  EXPECT_TRUE(has(100));
+  EXPECT_FALSE(has(101));
+  EXPECT_TRUE(has(102));
+  // Nearest first: 102 (0 m), then 40 (x = 10.1), 39 (9.85), 41 (10.35), ...
+  ASSERT_GE(out.size(), 4u);
+  EXPECT_EQ(out[0], 102);
+  EXPECT_EQ(out[1], 40);
+  EXPECT_EQ(out[2], 39);
+  EXPECT_EQ(out[3], 41);
+  // Twice the distance: 1 m more of motion widens the disc by 2 m (7.5 m: x in [2.5, 17.5], i = 10 .. 69).
+  sample_candidates(p, prior, 3.0, 3.0, &out);
+  EXPECT_EQ(count_on_axis(), 60);
+  EXPECT_TRUE(has(101));
+  // Not moved: the prior's own uncertainty only (1.5 m: x in [8.5, 11.5], i = 34 .. 45).
+  sample_candidates(p, prior, 0.0, 3.0, &out);
+  EXPECT_EQ(count_on_axis(), 12);
+  EXPECT_FALSE(has(100));
+  // Without a position prior: every keyframe, in order.
+  prior.valid = false;
+  sample_candidates(p, prior, 2.0, 3.0, &out);
+  ASSERT_EQ(out.size(), p.size());
+  for (size_t i = 0; i < p.size(); ++i) EXPECT_EQ(out[i], static_cast<int>(i));
+}
+
+// ---- recovery of a known offset on noise-free data ----
+
+TEST(Relocalizer, GivenAKnownOffsetThenItIsRecoveredExactlyWithAndWithoutPriors) {
+  auto prior = PriorMap::open(stores().full);
+  ASSERT_TRUE(prior.ok()) << prior.status().message();
+  Relocalizer reloc = make_relocalizer();
+  const Eigen::Isometry3d T_true = known_T_prior_world();
+  const CurrentRun run = make_current(walk().query_lab, T_true);
+  ASSERT_GT(run.local_map_world.size(), 5000u);
+
+  struct Case {
+    const char* name;
+    bool position, yaw;
+  };
+  for (const Case& c : {Case{"no priors", false, false}, Case{"position prior", true, false},
+                        Case{"yaw prior", false, true}, Case{"position + yaw priors", true, true}}) {
+    RelocalizationQuery q = make_query(run);
+    if (c.position) {
+      q.position.valid = true;
+      q.position.p_prior_m = run.T_prior_cam_true.translation() + Eigen::Vector3d(0.8, -0.5, 0.3);
+      q.position.sigma_m = 1.0;
+    }
+    if (c.yaw) {
+      q.yaw_valid = true;
+      q.yaw_prior_rad = yaw_of(T_true) + 4.0 * kDeg;
+      q.yaw_sigma_rad = 5.0 * kDeg;
+    }
+    const RelocalizationResult r = reloc.relocalize(q, &prior.value());
+    print_result(c.name, r);
+    ASSERT_TRUE(r.localized) << c.name << ": " << r.message;
+    const Errors e = pose_errors(r.T_prior_world, T_true);
+    std::printf("[ reloc    ]   error %.2f cm, %.3f deg\n", 100.0 * e.m, e.deg);
+    EXPECT_LT(e.m, 0.02) << c.name;
+    EXPECT_LT(e.deg, 0.3) << c.name;
+    if (c.position) {
+      EXPECT_LT(r.counters.candidates, static_cast<int>(prior->keyframes().size())) << c.name;
+    }
+  }
+  std::printf("[ reloc    ] prior map: %zu keyframes, %zu segments, cloud loads %llu, evictions %llu\n",
+              prior->keyframes().size(), prior->segments().size(),
+              static_cast<unsigned long long>(prior->counters().cloud_loads),
+              static_cast<unsigned long long>(prior->counters().cloud_evictions));
+}
+
+// ---- a second run of the simulator ----
+
+TEST(Relocalizer, GivenTheLabRevisitRunThenItsWorldFrameIsFoundInThePriorsFrame) {
+  auto prior = PriorMap::open(stores().full);
+  ASSERT_TRUE(prior.ok());
+  Relocalizer reloc = make_relocalizer();
+  // Exact relative ground truth: both runs' world frames placed in the scene by the simulator.
+  const Eigen::Isometry3d T_true = walk().T_scene_world_lab.inverse() * walk().T_scene_world_revisit;
+  const CurrentRun run = make_current(walk().query_revisit, T_true, T_true);
+  const RelocalizationResult r = reloc.relocalize(make_query(run), &prior.value());
+  print_result("lab-revisit, no priors", r);
+  ASSERT_TRUE(r.localized) << r.message;
+  const Errors e = pose_errors(r.T_prior_world, T_true);
+  std::printf("[ reloc    ]   error %.2f cm, %.3f deg (T_prior_world: %.2f m, %.1f deg)\n", 100.0 * e.m,
+              e.deg, T_true.translation().norm(), Eigen::AngleAxisd(T_true.linear()).angle() / kDeg);
+  EXPECT_LT(e.m, 0.02);
+  EXPECT_LT(e.deg, 0.3);
+}
+
+// ---- never a wrong pose ----
+
+TEST(Relocalizer, GivenAQueryFromWhereThePriorNeverWasThenNotLocalized) {
+  auto partial = PriorMap::open(stores().partial);
+  ASSERT_TRUE(partial.ok()) << partial.status().message();
+  Relocalizer reloc = make_relocalizer();
+  const Eigen::Isometry3d T_true = known_T_prior_world();
+  {
+    const CurrentRun run = make_current(walk().query_north, T_true);
+    const RelocalizationResult r = reloc.relocalize(make_query(run), &partial.value());
+    print_result("bench the prior never faced", r);
+    if (r.localized) {
+      const Errors e = pose_errors(r.T_prior_world, T_true);
+      std::printf("[ reloc    ]   error %.2f cm, %.3f deg\n", 100.0 * e.m, e.deg);
+    }
+    EXPECT_FALSE(r.localized) << r.message;
+    EXPECT_NE(r.reason, RelocalizationReason::kLocalized);
+  }
+  {
+    auto full = PriorMap::open(stores().full);
+    ASSERT_TRUE(full.ok());
+    const CurrentRun run = make_current(walk().query_outdoor, T_true);
+    const RelocalizationResult r = reloc.relocalize(make_query(run), &full.value());
+    print_result("outdoor vs lab prior", r);
+    EXPECT_FALSE(r.localized) << r.message;
+  }
+}
+
+TEST(Relocalizer, GivenContradictingPriorsThenNotLocalized) {
+  auto prior = PriorMap::open(stores().full);
+  ASSERT_TRUE(prior.ok());
+  Relocalizer reloc = make_relocalizer();
+  const Eigen::Isometry3d T_true = known_T_prior_world();
+  const CurrentRun run = make_current(walk().query_lab, T_true);
+  RelocalizationQuery q = make_query(run);
+  q.yaw_valid = true;
+  q.yaw_prior_rad = yaw_of(T_true) + 90.0 * kDeg;  // a magnetometer disturbed by 90 deg
+  q.yaw_sigma_rad = 5.0 * kDeg;
+  const RelocalizationResult r = reloc.relocalize(q, &prior.value());
+  print_result("yaw prior off by 90 deg", r);
+  EXPECT_FALSE(r.localized) << r.message;
+  EXPECT_GT(r.counters.yaw_rejected, 0);
+
+  // A GNSS fix 6 m off with a 0.5 m sigma: whatever the candidates near it give, the fit is not
+  // where the fix says.
+  q = make_query(run);
+  q.position.valid = true;
+  q.position.p_prior_m = run.T_prior_cam_true.translation() + Eigen::Vector3d(4.0, -4.5, 0.0);
+  q.position.sigma_m = 0.5;
+  const RelocalizationResult p = reloc.relocalize(q, &prior.value());
+  print_result("position prior off by 6 m", p);
+  EXPECT_FALSE(p.localized) << p.message;
+}
+
+TEST(Relocalizer, GivenAnInvalidQueryThenAnErrorReasonAndNoPose) {
+  auto prior = PriorMap::open(stores().full);
+  ASSERT_TRUE(prior.ok());
+  Relocalizer reloc = make_relocalizer();
+  const CurrentRun run = make_current(walk().query_lab, known_T_prior_world());
+  RelocalizationQuery q = make_query(run);
+  q.moved_m = -1;
+  EXPECT_EQ(reloc.relocalize(q, &prior.value()).reason, RelocalizationReason::kInvalidQuery);
+  q = make_query(run);
+  q.local_map_world.n = 10;
+  EXPECT_EQ(reloc.relocalize(q, &prior.value()).reason, RelocalizationReason::kTooFewLocalPoints);
+  q = make_query(run);
+  q.position.valid = true;
+  q.position.p_prior_m = Eigen::Vector3d(500, 500, 0);
+  q.position.sigma_m = 1.0;
+  const RelocalizationResult r = reloc.relocalize(q, &prior.value());
+  EXPECT_EQ(r.reason, RelocalizationReason::kNoCandidates);
+  EXPECT_FALSE(r.localized);
+  EXPECT_FALSE(Relocalizer::create(RelocalizerConfig{}, hal::PinholeIntrinsics{}, 10).ok());
+}
+
+}  // namespace
+}  // namespace hwr::recon
