@@ -542,32 +542,14 @@ core::Expected<std::vector<SegmentSummary>> MapStore::list_segments() const {
 }
 
 core::Expected<SegmentRecord> MapStore::read_segment(uint32_t segment_id) const {
-  const std::string seg_dir = join(dir_, kSegmentsDir) + "/" + segment_dir_name(segment_id);
-  if (!is_directory(seg_dir)) {
-    return core::NotFound("map store " + dir_ + ": no segment " + std::to_string(segment_id) + " (" +
-                          seg_dir + " not found; list_segments() gives the ids present)");
-  }
-  const std::string yaml_path = join(seg_dir, kSegmentYaml);
-  auto y = read_segment_yaml(yaml_path);
-  if (!y.ok()) return y.status();
-  if (y->record.segment_id != segment_id) {
-    return core::CorruptData(yaml_path + ": segment_id " + std::to_string(y->record.segment_id) +
-                             " does not match its directory");
-  }
-  SegmentRecord out = std::move(y->record);
-  const std::string kf_path = join(seg_dir, kKeyframesBin);
-  const std::string cloud_path = join(seg_dir, kCloudBin);
-  HWR_RETURN_IF_ERROR(check_file_size(kf_path, y->keyframes_bin_bytes));
-  HWR_RETURN_IF_ERROR(check_file_size(cloud_path, y->cloud_bin_bytes));
-  HWR_RETURN_IF_ERROR(store_detail::read_keyframes_file(kf_path, metadata_.descriptor_bytes,
-                                                        BinExpectation{y->keyframes, y->keyframes_bin_crc32},
-                                                        &out.keyframes));
-  HWR_RETURN_IF_ERROR(store_detail::read_cloud_file(cloud_path, BinExpectation{y->points, y->cloud_bin_crc32},
-                                                    &out.points_segment));
-  return out;
+  return read_segment_files(segment_id, /*with_cloud=*/true);
 }
 
 core::Expected<SegmentRecord> MapStore::read_keyframes(uint32_t segment_id) const {
+  return read_segment_files(segment_id, /*with_cloud=*/false);
+}
+
+core::Expected<SegmentRecord> MapStore::read_segment_files(uint32_t segment_id, bool with_cloud) const {
   const std::string seg_dir = join(dir_, kSegmentsDir) + "/" + segment_dir_name(segment_id);
   if (!is_directory(seg_dir)) {
     return core::NotFound("map store " + dir_ + ": no segment " + std::to_string(segment_id) + " (" +
@@ -586,6 +568,11 @@ core::Expected<SegmentRecord> MapStore::read_keyframes(uint32_t segment_id) cons
   HWR_RETURN_IF_ERROR(store_detail::read_keyframes_file(kf_path, metadata_.descriptor_bytes,
                                                         BinExpectation{y->keyframes, y->keyframes_bin_crc32},
                                                         &out.keyframes));
+  if (!with_cloud) return out;
+  const std::string cloud_path = join(seg_dir, kCloudBin);
+  HWR_RETURN_IF_ERROR(check_file_size(cloud_path, y->cloud_bin_bytes));
+  HWR_RETURN_IF_ERROR(store_detail::read_cloud_file(cloud_path, BinExpectation{y->points, y->cloud_bin_crc32},
+                                                    &out.points_segment));
   return out;
 }
 

@@ -2,12 +2,10 @@
 // few sizes in both Draco methods, with and without ids and normals, so the fuzzer starts from valid
 // bitstreams of every shape the codec writes. Generated at test time; seeds are never committed.
 
-#include <sys/stat.h>
-
-#include <cerrno>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 #include <random>
 #include <string>
 #include <vector>
@@ -20,14 +18,11 @@ int main(int argc, char** argv) {
     return 2;
   }
   const std::string dir = argv[1];
-  // mkdir -p for the corpus folder and its parent.
-  for (size_t slash = dir.find('/', 1);; slash = dir.find('/', slash + 1)) {
-    const std::string part = slash == std::string::npos ? dir : dir.substr(0, slash);
-    if (::mkdir(part.c_str(), 0755) != 0 && errno != EEXIST) {
-      std::fprintf(stderr, "cannot create %s: %s\n", part.c_str(), std::strerror(errno));
-      return 1;
-    }
-    if (slash == std::string::npos) break;
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  if (ec) {
+    std::fprintf(stderr, "cannot create %s: %s\n", dir.c_str(), ec.message().c_str());
+    return 1;
   }
   std::mt19937 rng(7);
   std::uniform_real_distribution<float> u(-2.f, 2.f);

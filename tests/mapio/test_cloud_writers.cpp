@@ -16,6 +16,7 @@
 
 #include <gtest/gtest.h>
 
+#include "temp_dir.hpp"
 #include "hwr/core/file_io.hpp"
 #include "hwr/mapio/cloud_writers.hpp"
 
@@ -25,20 +26,8 @@ namespace fs = std::filesystem;
 using hwr::core::ErrorCode;
 using hwr::mapio::CloudArrays;
 
-class TempDir {
- public:
-  TempDir() {
-    std::string tmpl = (fs::temp_directory_path() / "hwr_cloud_writers_XXXXXX").string();
-    path_ = ::mkdtemp(tmpl.data());
-  }
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path_, ec);
-  }
-  std::string file(const std::string& name) const { return path_ + "/" + name; }
-
- private:
-  std::string path_;
+struct TempDir : hwr::testing::TempDir {
+  TempDir() : hwr::testing::TempDir("hwr_cloud_writers") {}
 };
 
 CloudArrays random_cloud(size_t n, bool normals, uint32_t seed) {

@@ -22,6 +22,7 @@
 #include <gtest/gtest.h>
 
 #include "sigkill_writer.hpp"
+#include "temp_dir.hpp"
 #include "hwr/core/file_io.hpp"
 #include "hwr/mapio/chunk_wire.hpp"
 #include "hwr/mapio/ground_store.hpp"
@@ -33,21 +34,8 @@ using hwr::core::ErrorCode;
 using hwr::mapio::GroundStore;
 using hwr_lcm::map_chunk_t;
 
-class TempDir {
- public:
-  TempDir() {
-    std::string tmpl = (fs::temp_directory_path() / "hwr_ground_store_XXXXXX").string();
-    path_ = ::mkdtemp(tmpl.data());
-  }
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path_, ec);
-  }
-  const std::string& path() const { return path_; }
-  std::string out() const { return path_ + "/out"; }
-
- private:
-  std::string path_;
+struct TempDir : hwr::testing::TempDir {
+  TempDir() : hwr::testing::TempDir("hwr_ground_store") {}
 };
 
 struct ChunkSpec {
@@ -219,7 +207,7 @@ TEST(GroundStore, GivenChunksOfTwoRunsWhenReopenedThenListingsSegmentsAndBytesRo
   std::vector<map_chunk_t> chunks;
   for (const ChunkSpec& s : round_trip_specs()) chunks.push_back(make_chunk(s));
   {
-    GroundStore store = open_ok(tmp.out());
+    GroundStore store = open_ok(tmp.file("out"));
     for (const map_chunk_t& c : chunks) {
       bool was_new = false;
       ASSERT_TRUE(store.put(c, &was_new).ok()) << c.link_seq;
@@ -228,7 +216,7 @@ TEST(GroundStore, GivenChunksOfTwoRunsWhenReopenedThenListingsSegmentsAndBytesRo
     SCOPED_TRACE("before reopening");
     expect_round_trip_listing(store, chunks);
   }
-  GroundStore store = open_ok(tmp.out());
+  GroundStore store = open_ok(tmp.file("out"));
   SCOPED_TRACE("after reopening");
   expect_round_trip_listing(store, chunks);
   const GroundStore::OpenReport& r = store.open_report();
@@ -236,9 +224,9 @@ TEST(GroundStore, GivenChunksOfTwoRunsWhenReopenedThenListingsSegmentsAndBytesRo
   EXPECT_EQ(r.temp_files_removed + r.lone_payloads_removed + r.corrupt_quarantined + r.payloads_rewritten, 0);
   EXPECT_TRUE(r.notes.empty()) << r.notes.front();
   // The documented layout.
-  EXPECT_TRUE(fs::is_regular_file(tmp.out() + "/hwr-0/100/seg_000001_v0/chunk_000001.lcm"));
-  EXPECT_TRUE(fs::is_regular_file(tmp.out() + "/hwr-0/100/seg_000001_v0/chunk_000001.drc"));
-  EXPECT_TRUE(fs::is_regular_file(tmp.out() + "/hwr_1/7/seg_000012_v0/chunk_000000.lcm"));
+  EXPECT_TRUE(fs::is_regular_file(tmp.file("out") + "/hwr-0/100/seg_000001_v0/chunk_000001.lcm"));
+  EXPECT_TRUE(fs::is_regular_file(tmp.file("out") + "/hwr-0/100/seg_000001_v0/chunk_000001.drc"));
+  EXPECT_TRUE(fs::is_regular_file(tmp.file("out") + "/hwr_1/7/seg_000012_v0/chunk_000000.lcm"));
 }
 
 TEST(GroundStore, GivenTheSameChunkAgainThenItIsAcceptedWithoutRewritingAnything) {
@@ -246,11 +234,11 @@ TEST(GroundStore, GivenTheSameChunkAgainThenItIsAcceptedWithoutRewritingAnything
   ChunkSpec s;
   s.payload_bytes = 4096;
   const map_chunk_t c = make_chunk(s);
-  const std::string seg_dir = tmp.out() + "/hwr-0/" + std::to_string(s.run_id) + "/seg_000000_v0";
+  const std::string seg_dir = tmp.file("out") + "/hwr-0/" + std::to_string(s.run_id) + "/seg_000000_v0";
   struct stat before_lcm {
   }, before_drc{}, after{};
   {
-    GroundStore store = open_ok(tmp.out());
+    GroundStore store = open_ok(tmp.file("out"));
     ASSERT_TRUE(store.put(c).ok());
     ASSERT_EQ(::stat((seg_dir + "/chunk_000000.lcm").c_str(), &before_lcm), 0);
     ASSERT_EQ(::stat((seg_dir + "/chunk_000000.drc").c_str(), &before_drc), 0);
@@ -261,7 +249,7 @@ TEST(GroundStore, GivenTheSameChunkAgainThenItIsAcceptedWithoutRewritingAnything
     EXPECT_FALSE(was_new);
     EXPECT_EQ(store.chunks_stored(), 1);
   }
-  GroundStore store = open_ok(tmp.out());
+  GroundStore store = open_ok(tmp.file("out"));
   bool was_new = true;
   ASSERT_TRUE(store.put(c, &was_new).ok());
   EXPECT_FALSE(was_new) << "a restarted store must recognise what it already has";
@@ -275,7 +263,7 @@ TEST(GroundStore, GivenTheSameChunkAgainThenItIsAcceptedWithoutRewritingAnything
 
 TEST(GroundStore, GivenAChunkThatConflictsWithAStoredOneThenItIsRejectedAndNothingChanges) {
   TempDir tmp;
-  GroundStore store = open_ok(tmp.out());
+  GroundStore store = open_ok(tmp.file("out"));
   ChunkSpec s;
   s.link_seq = 3;
   s.chunk_index = 0;
@@ -302,13 +290,13 @@ TEST(GroundStore, GivenAChunkThatConflictsWithAStoredOneThenItIsRejectedAndNothi
   EXPECT_EQ(store.put(bad_crc).code(), ErrorCode::kCorruptData);
 
   EXPECT_EQ(store.stored_link_seqs(s.robot_id, s.run_id), (std::vector<int64_t>{3}));
-  EXPECT_EQ(names_in(tmp.out() + "/hwr-0/" + std::to_string(s.run_id) + "/seg_000000_v0"),
+  EXPECT_EQ(names_in(tmp.file("out") + "/hwr-0/" + std::to_string(s.run_id) + "/seg_000000_v0"),
             (std::set<std::string>{"chunk_000000.drc", "chunk_000000.lcm"}));
 }
 
 TEST(GroundStore, GivenHostileOrMalformedFieldsThenPutRejectsThemBeforeTouchingTheDisk) {
   TempDir tmp;
-  GroundStore store = open_ok(tmp.out());
+  GroundStore store = open_ok(tmp.file("out"));
   const std::vector<std::string> hostile = {"../x", "",     std::string(65, 'a'), "a/b", ".", "..", "a b",
                                             "x\n",  "/abs", "r\xc3\xa9"};
   for (const std::string& id : hostile) {
@@ -318,7 +306,7 @@ TEST(GroundStore, GivenHostileOrMalformedFieldsThenPutRejectsThemBeforeTouchingT
     EXPECT_EQ(st.code(), ErrorCode::kInvalidArgument) << "robot_id '" << id << "'";
     EXPECT_NE(st.message().find("[A-Za-z0-9_-]{1,64}"), std::string::npos) << st.message();
   }
-  EXPECT_EQ(names_in(tmp.out()), (std::set<std::string>{".ground_store.lock"}));
+  EXPECT_EQ(names_in(tmp.file("out")), (std::set<std::string>{".ground_store.lock"}));
   EXPECT_EQ(names_in(tmp.path()), (std::set<std::string>{"out"})) << "nothing may appear beside the store";
 
   ChunkSpec longest;
@@ -355,7 +343,7 @@ TEST(GroundStore, GivenHostileOrMalformedFieldsThenPutRejectsThemBeforeTouchingT
 
 TEST(GroundStore, GivenAMessageOverTheSizeCapThenPutRejectsIt) {
   TempDir tmp;
-  GroundStore store = open_ok(tmp.out());
+  GroundStore store = open_ok(tmp.file("out"));
   map_chunk_t big = make_chunk(ChunkSpec{});
   big.payload.assign(static_cast<size_t>(GroundStore::kMaxStoredMessageBytes), 0x5a);
   big.payload_size = static_cast<int32_t>(big.payload.size());
@@ -368,12 +356,12 @@ TEST(GroundStore, GivenAMessageOverTheSizeCapThenPutRejectsIt) {
 TEST(GroundStore, GivenASecondStoreOnTheSameFolderThenItIsRefusedUntilTheFirstCloses) {
   TempDir tmp;
   {
-    GroundStore first = open_ok(tmp.out());
-    auto second = GroundStore::open(tmp.out());
+    GroundStore first = open_ok(tmp.file("out"));
+    auto second = GroundStore::open(tmp.file("out"));
     ASSERT_FALSE(second.ok());
     EXPECT_EQ(second.status().code(), ErrorCode::kUnavailable) << second.status().to_string();
   }
-  EXPECT_TRUE(GroundStore::open(tmp.out()).ok());
+  EXPECT_TRUE(GroundStore::open(tmp.file("out")).ok());
 }
 
 // --- crash leftovers ------------------------------------------------------------------------------------
@@ -396,10 +384,10 @@ TEST(GroundStore, GivenCrashLeftoversAndDamagedFilesThenOpenCleansThemAndCountsO
     chunks.push_back(make_chunk(s));
   }
   {
-    GroundStore store = open_ok(tmp.out());
+    GroundStore store = open_ok(tmp.file("out"));
     for (const auto& c : chunks) ASSERT_TRUE(store.put(c).ok());
   }
-  const std::string dir = tmp.out() + "/hwr-0/" + std::to_string(chunks[0].run_id) + "/seg_000000_v0";
+  const std::string dir = tmp.file("out") + "/hwr-0/" + std::to_string(chunks[0].run_id) + "/seg_000000_v0";
   auto lcm = [&](int i) { return dir + "/chunk_00000" + std::to_string(i) + ".lcm"; };
   auto drc = [&](int i) { return dir + "/chunk_00000" + std::to_string(i) + ".drc"; };
   // Interrupted writes: temps, and a payload whose .lcm never came.
@@ -425,7 +413,7 @@ TEST(GroundStore, GivenCrashLeftoversAndDamagedFilesThenOpenCleansThemAndCountsO
   ASSERT_TRUE(hwr::core::write_file_atomic(dir + "/notes.txt", std::string("an operator's file")).ok());
 
   {
-    GroundStore store = open_ok(tmp.out());
+    GroundStore store = open_ok(tmp.file("out"));
     const GroundStore::OpenReport& r = store.open_report();
     EXPECT_EQ(r.chunks_loaded, 2);
     EXPECT_EQ(r.temp_files_removed, 2);
@@ -456,7 +444,7 @@ TEST(GroundStore, GivenCrashLeftoversAndDamagedFilesThenOpenCleansThemAndCountsO
       EXPECT_TRUE(was_new);
     }
   }
-  GroundStore store = open_ok(tmp.out());
+  GroundStore store = open_ok(tmp.file("out"));
   EXPECT_EQ(store.open_report().chunks_loaded, 6);
   EXPECT_EQ(store.open_report().corrupt_quarantined, 0);
   std::vector<map_chunk_t> loaded;
@@ -467,7 +455,7 @@ TEST(GroundStore, GivenCrashLeftoversAndDamagedFilesThenOpenCleansThemAndCountsO
 
 TEST(GroundStore, GivenAFileDamagedAfterOpenThenLoadSegmentReportsCorruptData) {
   TempDir tmp;
-  GroundStore store = open_ok(tmp.out());
+  GroundStore store = open_ok(tmp.file("out"));
   const map_chunk_t c = make_chunk(ChunkSpec{});
   ASSERT_TRUE(store.put(c).ok());
   const std::string path = store.lcm_path(c.robot_id, c.run_id, 0, 0, 0);
@@ -505,7 +493,7 @@ map_chunk_t crash_chunk(int64_t k) {
 
 TEST(GroundStore, GivenAWriterKilledAtRandomMomentsThenEveryListedChunkDecodesToWhatWasPut) {
   TempDir tmp;
-  const std::string dir = tmp.out();
+  const std::string dir = tmp.file("out");
   std::mt19937 rng(20261125);
   std::uniform_int_distribution<int> delay_ms(5, 120);
   constexpr int kRounds = 20;

@@ -24,6 +24,7 @@
 #include <gtest/gtest.h>
 
 #include "sigkill_writer.hpp"
+#include "temp_dir.hpp"
 #include "hwr/core/alloc_counter.hpp"
 #include "hwr/recon/map_store.hpp"
 
@@ -34,24 +35,9 @@ namespace fs = std::filesystem;
 
 constexpr int kDescriptorBytes = 32;
 
-// A fresh directory under the system temp dir, removed at the end of the test.
-class TempDir {
- public:
-  TempDir() {
-    std::string templ = (fs::temp_directory_path() / "hwr_map_store_XXXXXX").string();
-    const char* made = ::mkdtemp(templ.data());
-    EXPECT_NE(made, nullptr) << "mkdtemp failed";
-    path_ = templ;
-  }
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path_, ec);
-  }
-  const std::string& path() const { return path_; }
-  std::string store() const { return path_ + "/store"; }
-
- private:
-  std::string path_;
+struct TempDir : hwr::testing::TempDir {
+  TempDir() : hwr::testing::TempDir("hwr_map_store") {}
+  std::string store() const { return file("store"); }
 };
 
 // Bitwise CRC32 (ISO-HDLC, reflected 0xEDB88320): a second implementation of the files' checksum.

@@ -19,6 +19,7 @@
 
 #include <gtest/gtest.h>
 
+#include "temp_dir.hpp"
 #include "hwr/estimation/descriptor.hpp"
 #include "hwr/recon/map_store.hpp"
 #include "hwr/recon/prior_map.hpp"
@@ -28,22 +29,8 @@ namespace {
 
 namespace fs = std::filesystem;
 
-class TempDir {
- public:
-  TempDir() {
-    std::string templ = (fs::temp_directory_path() / "hwr_prior_map_XXXXXX").string();
-    const char* made = ::mkdtemp(templ.data());
-    EXPECT_NE(made, nullptr) << "mkdtemp failed";
-    path_ = templ;
-  }
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path_, ec);
-  }
-  std::string store() const { return path_ + "/store"; }
-
- private:
-  std::string path_;
+struct TempDir : hwr::testing::TempDir {
+  TempDir() : hwr::testing::TempDir("hwr_prior_map") {}
 };
 
 StoreMetadata metadata() {
@@ -186,8 +173,8 @@ void flip_byte(const std::string& path, size_t offset) {
 TEST(PriorMap, GivenAStoreWhenOpenedThenKeyframesAreIndexedAndNoCloudIsRead) {
   TempDir tmp;
   const std::vector<SegmentRecord> segments = make_segments();
-  write_store(tmp.store(), segments);
-  auto map = PriorMap::open(tmp.store());
+  write_store(tmp.file("store"), segments);
+  auto map = PriorMap::open(tmp.file("store"));
   ASSERT_TRUE(map.ok()) << map.status().message();
   EXPECT_EQ(map->counters().cloud_loads, 0u);
   EXPECT_EQ(map->counters().loaded_points, 0);
@@ -236,10 +223,10 @@ TEST(PriorMap, GivenAStoreWhenOpenedThenKeyframesAreIndexedAndNoCloudIsRead) {
 TEST(PriorMap, GivenAPositionWhenPointsNearThenExactlyThePointsOfTheBallInThePriorFrame) {
   TempDir tmp;
   const std::vector<SegmentRecord> segments = make_segments();
-  write_store(tmp.store(), segments);
+  write_store(tmp.file("store"), segments);
   PriorMapConfig config;
   config.cloud_reach_m = 2.5;  // the synthetic clouds lie within 2 sqrt(3) m of the keyframes
-  auto map = PriorMap::open(tmp.store(), config);
+  auto map = PriorMap::open(tmp.file("store"), config);
   ASSERT_TRUE(map.ok()) << map.status().message();
   std::vector<CloudPoint> out;
 
@@ -286,11 +273,11 @@ TEST(PriorMap, GivenAPositionWhenPointsNearThenExactlyThePointsOfTheBallInThePri
 TEST(PriorMap, GivenABudgetOfOneSegmentThenTheLeastRecentlyUsedCloudIsEvicted) {
   TempDir tmp;
   const std::vector<SegmentRecord> segments = make_segments();
-  write_store(tmp.store(), segments);
+  write_store(tmp.file("store"), segments);
   PriorMapConfig config;
   config.cloud_reach_m = 2.5;
   config.max_loaded_points = kPointsPerSegment + kPointsPerSegment / 2;  // room for one cloud
-  auto map = PriorMap::open(tmp.store(), config);
+  auto map = PriorMap::open(tmp.file("store"), config);
   ASSERT_TRUE(map.ok());
   std::vector<CloudPoint> out;
   const Eigen::Vector3d c[3] = {segment_pose(0).translation(), segment_pose(1).translation(),
@@ -326,7 +313,7 @@ TEST(PriorMap, GivenABudgetOfOneSegmentThenTheLeastRecentlyUsedCloudIsEvicted) {
   // With room for all three, the same ball gives both segments' points.
   PriorMapConfig big = config;
   big.max_loaded_points = 3 * kPointsPerSegment;
-  auto map2 = PriorMap::open(tmp.store(), big);
+  auto map2 = PriorMap::open(tmp.file("store"), big);
   ASSERT_TRUE(map2.ok());
   st = map2->points_near(between, radius, &out);
   ASSERT_TRUE(st.ok());
@@ -336,19 +323,19 @@ TEST(PriorMap, GivenABudgetOfOneSegmentThenTheLeastRecentlyUsedCloudIsEvicted) {
 
 TEST(PriorMap, GivenAMissingOrDamagedStoreThenTheErrorNamesTheFile) {
   TempDir tmp;
-  auto missing = PriorMap::open(tmp.store() + "/nope");
+  auto missing = PriorMap::open(tmp.file("store") + "/nope");
   ASSERT_FALSE(missing.ok());
   EXPECT_EQ(missing.status().code(), core::ErrorCode::kNotFound);
   EXPECT_NE(missing.status().message().find("nope"), std::string::npos) << missing.status().message();
 
   const std::vector<SegmentRecord> segments = make_segments();
-  write_store(tmp.store(), segments);
+  write_store(tmp.file("store"), segments);
   // A damaged cloud is found when it is needed (the clouds are lazy), not at open.
-  const std::string cloud1 = tmp.store() + "/segments/seg_000001/cloud.bin";
+  const std::string cloud1 = tmp.file("store") + "/segments/seg_000001/cloud.bin";
   flip_byte(cloud1, 48 + 100);
   PriorMapConfig config;
   config.cloud_reach_m = 2.5;
-  auto map = PriorMap::open(tmp.store(), config);
+  auto map = PriorMap::open(tmp.file("store"), config);
   ASSERT_TRUE(map.ok()) << map.status().message();
   std::vector<CloudPoint> out;
   ASSERT_TRUE(map->points_near(segment_pose(0).translation(), 4.0, &out).ok());
@@ -359,9 +346,9 @@ TEST(PriorMap, GivenAMissingOrDamagedStoreThenTheErrorNamesTheFile) {
   EXPECT_TRUE(out.empty());
 
   // A damaged keyframes.bin fails open().
-  const std::string kf2 = tmp.store() + "/segments/seg_000002/keyframes.bin";
+  const std::string kf2 = tmp.file("store") + "/segments/seg_000002/keyframes.bin";
   flip_byte(kf2, 48 + 20);
-  auto broken = PriorMap::open(tmp.store(), config);
+  auto broken = PriorMap::open(tmp.file("store"), config);
   ASSERT_FALSE(broken.ok());
   EXPECT_EQ(broken.status().code(), core::ErrorCode::kCorruptData);
   EXPECT_NE(broken.status().message().find(kf2), std::string::npos) << broken.status().message();
@@ -370,11 +357,11 @@ TEST(PriorMap, GivenAMissingOrDamagedStoreThenTheErrorNamesTheFile) {
 TEST(MapStore, GivenASegmentWhenReadKeyframesThenKeyframesWithoutTheCloud) {
   TempDir tmp;
   const std::vector<SegmentRecord> segments = make_segments();
-  write_store(tmp.store(), segments);
-  auto store = MapStore::open_existing(tmp.store());
+  write_store(tmp.file("store"), segments);
+  auto store = MapStore::open_existing(tmp.file("store"));
   ASSERT_TRUE(store.ok());
   // Even with its cloud gone: keyframes.bin and segment.yaml are all it reads.
-  fs::remove(tmp.store() + "/segments/seg_000001/cloud.bin");
+  fs::remove(tmp.file("store") + "/segments/seg_000001/cloud.bin");
   auto rec = store->read_keyframes(1);
   ASSERT_TRUE(rec.ok()) << rec.status().message();
   EXPECT_TRUE(rec->points_segment.empty());

@@ -24,6 +24,7 @@
 #include <gtest/gtest.h>
 #include <opencv2/imgproc.hpp>
 
+#include "temp_dir.hpp"
 #include "hwr/core/arena.hpp"
 #include "hwr/estimation/orb_extractor.hpp"
 #include "hwr/recon/keyframe_cloud.hpp"
@@ -195,22 +196,8 @@ const SimWalk& walk() {
   return data;
 }
 
-class TempDir {
- public:
-  TempDir() {
-    std::string templ = (fs::temp_directory_path() / "hwr_reloc_XXXXXX").string();
-    const char* made = ::mkdtemp(templ.data());
-    EXPECT_NE(made, nullptr);
-    path_ = templ;
-  }
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path_, ec);
-  }
-  const std::string& path() const { return path_; }
-
- private:
-  std::string path_;
+struct TempDir : hwr::testing::TempDir {
+  TempDir() : hwr::testing::TempDir("hwr_reloc") {}
 };
 
 // The prior stores, written once: the whole prior run, and its first 40 s.

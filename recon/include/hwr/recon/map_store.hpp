@@ -119,6 +119,7 @@ class MapStore {
   core::Expected<SegmentRecord> read_keyframes(uint32_t segment_id) const;
 
  private:
+  core::Expected<SegmentRecord> read_segment_files(uint32_t segment_id, bool with_cloud) const;
   MapStore(std::string dir, StoreMetadata metadata) : dir_(std::move(dir)), metadata_(std::move(metadata)) {}
   std::string dir_;
   StoreMetadata metadata_;
