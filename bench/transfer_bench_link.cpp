@@ -43,7 +43,12 @@ int64_t steady_ns() {
 // or counted unmatched.
 class SegmentMatcher {
  public:
-  SegmentMatcher(int color_bits, double bound_m) : color_bits_(color_bits), bound_m_(bound_m) {}
+  // Points are searched within twice the bound (at least 2 mm), on a grid of cells of twice that.
+  SegmentMatcher(int color_bits, double bound_m)
+      : color_bits_(color_bits),
+        bound_m_(bound_m),
+        radius_m_(std::max(0.002, 2.0 * bound_m)),
+        cell_m_(2.0 * radius_m_) {}
 
   void match(const std::vector<mapio::ChunkPoint>& ref, const std::vector<mapio::ChunkPoint>& dec,
              TransferResult* r) {
@@ -149,9 +154,10 @@ class SegmentMatcher {
 
   template <class F>
   void for_near(const mapio::ChunkPoint& d, F&& f) const {
-    for (int64_t cx = cell(d.x_m - kRadiusM); cx <= cell(d.x_m + kRadiusM); ++cx)
-      for (int64_t cy = cell(d.y_m - kRadiusM); cy <= cell(d.y_m + kRadiusM); ++cy)
-        for (int64_t cz = cell(d.z_m - kRadiusM); cz <= cell(d.z_m + kRadiusM); ++cz) {
+    const double r = radius_m_;
+    for (int64_t cx = cell(d.x_m - r); cx <= cell(d.x_m + r); ++cx)
+      for (int64_t cy = cell(d.y_m - r); cy <= cell(d.y_m + r); ++cy)
+        for (int64_t cz = cell(d.z_m - r); cz <= cell(d.z_m + r); ++cz) {
           auto it = head_.find(key(cx, cy, cz));
           if (it == head_.end()) continue;
           for (int i = it->second; i >= 0; i = next_[static_cast<size_t>(i)]) f(i);
@@ -172,16 +178,15 @@ class SegmentMatcher {
   }
   uint8_t reduced(uint8_t v) const { return mapio::reduce_color_channel(v, color_bits_); }
 
-  static constexpr double kCellM = 0.004;
-  static constexpr double kRadiusM = 0.002;
   static constexpr int kMaxFallbacks = 64;
-  static int64_t cell(double v) { return static_cast<int64_t>(std::floor(v / kCellM)); }
+  int64_t cell(double v) const { return static_cast<int64_t>(std::floor(v / cell_m_)); }
   static int64_t key(int64_t x, int64_t y, int64_t z) {
     constexpr int64_t kMask = (int64_t{1} << 21) - 1;
     return ((x & kMask) << 42) | ((y & kMask) << 21) | (z & kMask);
   }
   int color_bits_;
   double bound_m_;
+  double radius_m_, cell_m_;
   std::unordered_map<int64_t, int> head_;
   std::vector<int> next_;
   std::vector<int> adj_start_, adj_;
@@ -399,11 +404,15 @@ CodecThroughput measure_codec(const PointStream& map, const mapio::MapStreamerCo
   batch.reserve(static_cast<size_t>(config.max_batch_points));
   const auto t0 = std::chrono::steady_clock::now();
   for (const StreamBatch& b : map.batches) {
-    batch.assign(map.points_segment.begin() + static_cast<ptrdiff_t>(b.first),
-                 map.points_segment.begin() + static_cast<ptrdiff_t>(b.first) + b.n);
-    if (config.spatial_order) order.sort(batch.data(), nullptr, b.n);
-    for (int first = 0; first < b.n; first += config.max_points_per_chunk)
-      encode(encode, batch.data() + first, std::min(config.max_points_per_chunk, b.n - first));
+    // As MapStreamer::submit: a batch over max_batch_points goes in pieces, each sorted and cut.
+    for (int piece = 0; piece < b.n; piece += config.max_batch_points) {
+      const int n = std::min(config.max_batch_points, b.n - piece);
+      const auto begin = map.points_segment.begin() + static_cast<ptrdiff_t>(b.first) + piece;
+      batch.assign(begin, begin + n);
+      if (config.spatial_order) order.sort(batch.data(), nullptr, n);
+      for (int first = 0; first < n; first += config.max_points_per_chunk)
+        encode(encode, batch.data() + first, std::min(config.max_points_per_chunk, n - first));
+    }
   }
   const auto t1 = std::chrono::steady_clock::now();
   mapio::DecodedChunk decoded;

@@ -110,6 +110,10 @@ core::Expected<LocalMapper> LocalMapper::create(const LocalMapperConfig& config,
 void LocalMapper::update(const estimation::KeyframeStore& keyframes, SegmentSink* sink, bool flush) {
   if (keyframes.empty()) return;
   const int newest = keyframes.newest_id();
+  // Sensor tags now, while the keyframe's samples are in the rings (keyframe_sensor_tags.hpp).
+  for (int id = std::max(tagged_upto_ + 1, keyframes.oldest_id()); id <= newest; ++id)
+    if (const estimation::Keyframe* kf = keyframes.get(id)) sensor_tags_.remember(id, kf->t_ns);
+  tagged_upto_ = std::max(tagged_upto_, newest);
   const int last = flush ? newest : newest - config_.keyframe_lag;
   // A keyframe that left the ring before it was fused keeps nothing to fuse; start at the oldest.
   next_id_ = std::max(next_id_, keyframes.oldest_id());

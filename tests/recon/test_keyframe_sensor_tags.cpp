@@ -92,5 +92,46 @@ TEST(KeyframeSensorTags, GivenMoreSamplesThanTheRingHoldsThenTheNewestAreKept) {
   EXPECT_EQ(tagged(tags, 379 * kMs).mag_imu_uT.x(), 380.0);  // newest
 }
 
+// A keyframe remembered when it was made keeps its tags through a long stop: by the time the mapper
+// stores it, newer samples have pushed its own out of the rings.
+TEST(KeyframeSensorTags, GivenARememberedKeyframeThenALongStopDoesNotLoseItsTags) {
+  KeyframeSensorTagsConfig cfg;
+  cfg.mag_capacity = 16;
+  cfg.gnss_capacity = 4;
+  KeyframeSensorTags tags(cfg);
+  for (int64_t t = 0; t <= 100 * kMs; t += 20 * kMs) tags.add_mag(mag_at(t));
+  tags.add_gnss(fix_at(100 * kMs));
+  tags.remember(7, 95 * kMs);
+  for (int64_t t = 120 * kMs; t <= 30'000 * kMs; t += 20 * kMs) tags.add_mag(mag_at(t));  // 30 s stop
+  for (int64_t t = 300 * kMs; t <= 30'000 * kMs; t += 200 * kMs) tags.add_gnss(fix_at(t));
+  StoredKeyframe kf;
+  kf.id = 7;
+  kf.t_ns = 95 * kMs;
+  tags.tag(&kf);
+  ASSERT_TRUE(kf.mag_valid);
+  EXPECT_EQ(kf.mag_imu_uT.x(), 100.0);
+  ASSERT_TRUE(kf.gnss_valid);
+  EXPECT_NEAR(kf.lat_deg, 47.0 + 100e-6, 1e-12);
+  // Not remembered: the rings alone, which no longer reach back that far.
+  kf.id = 8;
+  tags.tag(&kf);
+  EXPECT_FALSE(kf.mag_valid);
+  EXPECT_FALSE(kf.gnss_valid);
+}
+
+// A sample far older than the newest is a restarted source: the rings start over instead of
+// refusing every sample until time passes the old maximum.
+TEST(KeyframeSensorTags, GivenASourceRestartThenTheRingsStartOver) {
+  KeyframeSensorTags tags;
+  for (int64_t t = 0; t <= 5000 * kMs; t += 20 * kMs) tags.add_mag(mag_at(t));
+  tags.add_mag(mag_at(4990 * kMs));  // 10 ms older: out of order, ignored
+  EXPECT_EQ(tags.rejected(), 1u);
+  tags.add_mag(mag_at(100 * kMs));  // 4.9 s older: restart
+  tags.add_mag(mag_at(120 * kMs));
+  EXPECT_EQ(tags.rejected(), 1u);
+  EXPECT_EQ(tagged(tags, 118 * kMs).mag_imu_uT.x(), 120.0);
+  EXPECT_FALSE(tagged(tags, 3000 * kMs).mag_valid);  // the old samples are gone
+}
+
 }  // namespace
 }  // namespace hwr::recon

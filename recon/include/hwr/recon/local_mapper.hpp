@@ -127,6 +127,7 @@ class LocalMapper {
   LocalMapperCounters counters_;
   MapStreamSink* stream_sink_ = nullptr;
   KeyframeSensorTags sensor_tags_;
+  int tagged_upto_ = -1;                // newest keyframe id whose sensor tags are remembered
   int streamed_voxels_ = 0;             // of the active map, in creation order
   std::vector<int> map_size_after_kf_;  // ring: map size after each of the last lag+1 keyframes
   int keyframes_in_segment_ = 0;
