@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstddef>
 #include <limits>
+#include <mutex>
 #include <string>
 
 #include <embree3/rtcore.h>
@@ -46,6 +47,13 @@ inline float inverse_depth(const cv::Mat& depth_m, int u, int v) {
   return (std::isfinite(z) && z > 0.0f) ? 1.0f / z : 0.0f;
 }
 
+// Cluster of a measured normal (prior frame): dominant axis a, sign -> 2a + (n_a < 0).
+inline int normal_cluster(const Eigen::Vector3f& n) {
+  int a = 0;
+  n.cwiseAbs().maxCoeff(&a);
+  return 2 * a + (n[a] < 0.0f ? 1 : 0);
+}
+
 }  // namespace
 
 struct FreeSpaceCarver::Impl {
@@ -63,11 +71,17 @@ struct FreeSpaceCarver::Impl {
     uint32_t stamp = 0;
     bool vote = true;
     int64_t free_votes = 0, occupied_votes = 0;
-    // Check pass: histogram of s over [-bias_window_m, bias_window_m] (kBiasBins bins).
+    // Voting pass: which normal clusters passed the check (their rays vote).
+    std::array<bool, kNormalClusters> cluster_votes{};
+    // Check pass, per normal cluster: near / far rays and the histogram of s over
+    // [-bias_window_m, bias_window_m] (kBiasBins bins). The current ray's cluster and what it met.
     float bias_window_m = 0;
-    int64_t surface_pairs = 0;
-    double margin_sum_m = 0;  // of those pairs' free margins
-    std::array<uint32_t, kBiasBins> bias_hist{};
+    int cluster = 0;
+    bool ray_near = false, ray_hit = false;
+    std::array<int, kNormalClusters> near_rays{}, far_rays{};
+    std::array<int64_t, kNormalClusters> surface_pairs{};
+    std::array<double, kNormalClusters> margin_sum_m{};  // of those pairs' free margins
+    std::array<std::array<uint32_t, kBiasBins>, kNormalClusters> bias_hist{};
   };
 
   FreeSpaceCarverConfig config;
@@ -79,6 +93,8 @@ struct FreeSpaceCarver::Impl {
   std::vector<uint32_t> stamps;
   std::vector<uint16_t> free_hits, occupied_hits;
   uint32_t ray_id = 0;
+  // Embree may report errors from its worker threads (BVH build): guarded.
+  std::mutex error_mutex;
   std::string error;
 
   ~Impl() {
@@ -88,6 +104,7 @@ struct FreeSpaceCarver::Impl {
 
   static void on_error(void* user, RTCError code, const char* message) {
     auto* self = static_cast<Impl*>(user);
+    const std::lock_guard<std::mutex> lock(self->error_mutex);
     if (self->error.empty()) self->error = "Embree error " + std::to_string(code) + ": " + message;
   }
 
@@ -110,11 +127,14 @@ struct FreeSpaceCarver::Impl {
       const Eigen::Vector3f q_to_p = p - rc->q;
       const float s = rc->n.dot(q_to_p);  // height above the measured plane, towards the camera
       if (!rc->vote) {
+        rc->ray_hit = true;
         if (std::abs(s) < rc->bias_window_m) {
           const int bin = static_cast<int>((s + rc->bias_window_m) / (2.0f * rc->bias_window_m) * kBiasBins);
-          ++rc->bias_hist[static_cast<size_t>(std::clamp(bin, 0, kBiasBins - 1))];
-          ++rc->surface_pairs;
-          rc->margin_sum_m += rc->margin_m;
+          const size_t k_cl = static_cast<size_t>(rc->cluster);
+          ++rc->bias_hist[k_cl][static_cast<size_t>(std::clamp(bin, 0, kBiasBins - 1))];
+          ++rc->surface_pairs[k_cl];
+          rc->margin_sum_m[k_cl] += rc->margin_m;
+          rc->ray_near = true;
         }
         continue;
       }
@@ -131,21 +151,22 @@ struct FreeSpaceCarver::Impl {
     }
   }
 
-  // The q-quantile of the check pass's histogram of s (bin centre).
-  static float quantile(const RayContext& rc, double q, float window_m) {
-    const double target = q * static_cast<double>(rc.surface_pairs);
+  // The q-quantile of the check pass's histogram of s in cluster k (bin centre).
+  static float quantile(const RayContext& rc, int k, double q, float window_m) {
+    const auto& hist = rc.bias_hist[static_cast<size_t>(k)];
+    const double target = q * static_cast<double>(rc.surface_pairs[static_cast<size_t>(k)]);
     int64_t below = 0;
     int bin = 0;
-    while (bin < kBiasBins - 1 &&
-           static_cast<double>(below + rc.bias_hist[static_cast<size_t>(bin)]) <= target) {
-      below += rc.bias_hist[static_cast<size_t>(bin)];
+    while (bin < kBiasBins - 1 && static_cast<double>(below + hist[static_cast<size_t>(bin)]) <= target) {
+      below += hist[static_cast<size_t>(bin)];
       ++bin;
     }
     return (2.0f * (static_cast<float>(bin) + 0.5f) / kBiasBins - 1.0f) * window_m;
   }
 
-  // Casts every stride_px-th pixel's ray (header); with vote false only the near-surface residual
-  // is measured.
+  // Casts every stride_px-th pixel's ray (header); with vote false only the pose check's near / far
+  // rays and near-surface residuals are measured, with vote true only the rays of the clusters in
+  // rc_out->cluster_votes are cast.
   void cast(const cv::Mat& depth_m, const hal::PinholeIntrinsics& K, const Eigen::Isometry3d& T_prior_cam,
             int stride_px, bool vote, RayContext* rc_out, FreeSpaceObserveStats* stats_out) {
     const Eigen::Matrix3f R = T_prior_cam.linear().cast<float>();
@@ -204,8 +225,15 @@ struct FreeSpaceCarver::Impl {
         const float sigma_pose_m = c.pose_sigma_m + c.pose_sigma_rad * range_m;
         const float sigma_m = std::sqrt(sigma_range_m * sigma_range_m + sigma_pose_m * sigma_pose_m);
         const float margin = c.margin_min_m + c.k_sigma * sigma_m;
-        rc.d = R * d_cam;
         rc.n = -(R * n_over_c).normalized();
+        const int cluster = normal_cluster(rc.n);
+        if (vote && !rc.cluster_votes[static_cast<size_t>(cluster)]) {
+          ++stats.unverified;
+          continue;
+        }
+        rc.cluster = cluster;
+        rc.ray_near = rc.ray_hit = false;
+        rc.d = R * d_cam;
         rc.q = o + z * rc.d;
         rc.d_norm = d_norm;
         rc.margin_m = margin;
@@ -227,8 +255,9 @@ struct FreeSpaceCarver::Impl {
         rh.ray.dir_z = rc.d.z();
         rh.ray.tnear = 0.0f;
         // Past the endpoint only points on the measured plane matter (occupied): at incidence cos_inc
-        // the ray stays within margin + radius of the plane for that range divided by cos_inc.
-        const float behind_m = vote ? margin : std::max(margin, c.bias_window_m);
+        // the ray stays within margin + radius of the plane for that range divided by cos_inc. Check
+        // rays go on to check_reach_behind_m: a prior surface behind the measured one is "far".
+        const float behind_m = vote ? margin : std::max(margin, c.check_reach_behind_m);
         rh.ray.tfar = z + (behind_m + c.point_radius_m) / (d_norm * cos_inc);
         rh.ray.time = 0.0f;
         rh.ray.mask = 0xFFFFFFFFu;
@@ -238,11 +267,19 @@ struct FreeSpaceCarver::Impl {
         rh.hit.primID = RTC_INVALID_GEOMETRY_ID;
         rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
         rtcIntersect1(scene, &rc.embree, &rh);
+        if (!vote) {
+          if (rc.ray_near) {
+            ++rc.near_rays[static_cast<size_t>(cluster)];
+          } else if (rc.ray_hit) {
+            ++rc.far_rays[static_cast<size_t>(cluster)];
+          }
+        }
       }
     }
   }
 
   core::Status embree_status(const char* what) {
+    const std::lock_guard<std::mutex> lock(error_mutex);
     if (error.empty()) return core::Status::Ok();
     core::Status st = core::Internal(std::string(what) + ": " + error);
     error.clear();
@@ -285,13 +322,18 @@ core::Expected<FreeSpaceCarver> FreeSpaceCarver::create(const FreeSpaceCarverCon
   }
   if (!(std::isfinite(c.max_surface_bias_m) && c.max_surface_bias_m > 0) ||
       !(std::isfinite(c.bias_window_m) && c.bias_window_m > c.max_surface_bias_m) ||
-      !(std::isfinite(c.max_iqr_to_margin) && c.max_iqr_to_margin > 0) || c.bias_check_subsample < 0 ||
-      c.min_bias_pairs < 1) {
+      !(std::isfinite(c.max_iqr_to_margin) && c.max_iqr_to_margin > 0) ||
+      !(std::isfinite(c.check_reach_behind_m) && c.check_reach_behind_m >= c.bias_window_m) ||
+      !(c.min_near_fraction >= 0.0f && c.min_near_fraction <= 1.0f) || c.bias_check_subsample < 0 ||
+      c.min_bias_pairs < 1 || c.min_cluster_rays < 1) {
     return core::InvalidArgument(
-        "free-space carver: max_surface_bias_m and max_iqr_to_margin must be > 0, bias_window_m > "
-        "max_surface_bias_m, "
-        "bias_check_subsample >= 0 and min_bias_pairs >= "
-        "1");
+        "free-space carver: pose check needs max_surface_bias_m > 0, bias_window_m > max_surface_bias_m, "
+        "check_reach_behind_m >= bias_window_m, max_iqr_to_margin > 0, min_near_fraction in [0, 1], "
+        "bias_check_subsample >= 0, min_bias_pairs >= 1 and min_cluster_rays >= 1");
+  }
+  if (c.embree_threads < 1) {
+    return core::InvalidArgument("free-space carver: embree_threads must be >= 1 (got " +
+                                 std::to_string(c.embree_threads) + ")");
   }
   if (c.normal_window_px < 1 || c.min_free_hits < 1) {
     return core::InvalidArgument("free-space carver: normal_window_px and min_free_hits must be >= 1 (got " +
@@ -305,7 +347,9 @@ core::Expected<FreeSpaceCarver> FreeSpaceCarver::create(const FreeSpaceCarverCon
   auto impl = std::make_unique<Impl>();
   impl->config = c;
   impl->max_points = max_points;
-  impl->device = rtcNewDevice(nullptr);
+  // Without a thread count Embree starts a worker per core (its config string: "threads=N").
+  const std::string device_config = "threads=" + std::to_string(c.embree_threads);
+  impl->device = rtcNewDevice(device_config.c_str());
   if (!impl->device) {
     return core::Unavailable("free-space carver: cannot create the Embree device (error " +
                              std::to_string(rtcGetDeviceError(nullptr)) + ")");
@@ -396,26 +440,43 @@ core::Expected<FreeSpaceObserveStats> FreeSpaceCarver::observe(const cv::Mat& de
 
   ScopedFlushDenormals ftz;
   FreeSpaceObserveStats stats;
-  Impl::RayContext check;
+  Impl::RayContext rc;
+  rc.cluster_votes.fill(true);
   if (m.n > 0 && c.bias_check_subsample > 0) {
-    // Pose check first (header): a sparse pass that only measures the near-surface residual.
+    // Pose check first (header): a sparse pass that only measures near / far rays and residuals.
+    Impl::RayContext check;
     FreeSpaceObserveStats ignored;
     m.cast(depth_m, K, T_prior_cam, stride_px * c.bias_check_subsample, /*vote=*/false, &check, &ignored);
-    stats.surface_pairs = check.surface_pairs;
-    if (check.surface_pairs > 0) {
-      // Quartiles of s from the histogram (bin centres): robust to the changed geometry in the window.
-      stats.surface_median_m = Impl::quantile(check, 0.5, c.bias_window_m);
-      stats.surface_iqr_m =
-          Impl::quantile(check, 0.75, c.bias_window_m) - Impl::quantile(check, 0.25, c.bias_window_m);
-      stats.surface_margin_m =
-          static_cast<float>(check.margin_sum_m / static_cast<double>(check.surface_pairs));
+    bool any_failed = false;
+    for (int k = 0; k < kNormalClusters; ++k) {
+      const size_t kk = static_cast<size_t>(k);
+      SurfaceClusterCheck& cl = stats.clusters[kk];
+      rc.cluster_votes[kk] = false;  // until it passes
+      cl.near_rays = check.near_rays[kk];
+      cl.far_rays = check.far_rays[kk];
+      cl.pairs = check.surface_pairs[kk];
+      if (cl.pairs > 0) {
+        // Quartiles of s from the histogram (bin centres): robust to changed geometry in the window.
+        cl.median_m = Impl::quantile(check, k, 0.5, c.bias_window_m);
+        cl.iqr_m =
+            Impl::quantile(check, k, 0.75, c.bias_window_m) - Impl::quantile(check, k, 0.25, c.bias_window_m);
+        cl.margin_m = static_cast<float>(check.margin_sum_m[kk] / static_cast<double>(cl.pairs));
+      }
+      const int checkable = cl.near_rays + cl.far_rays;
+      cl.checked = checkable >= c.min_cluster_rays;
+      if (!cl.checked) continue;  // unverified: its rays cast nothing
+      cl.passed = static_cast<float>(cl.near_rays) >= c.min_near_fraction * static_cast<float>(checkable) &&
+                  std::abs(cl.median_m) <= c.max_surface_bias_m &&
+                  cl.iqr_m <= c.max_iqr_to_margin * cl.margin_m;
+      any_failed = any_failed || !cl.passed;
+      if (cl.passed) stats.surface_pairs += cl.pairs;
+      rc.cluster_votes[kk] = cl.passed;
     }
-    stats.bias_checked = check.surface_pairs >= c.min_bias_pairs;
-    stats.misaligned =
-        stats.bias_checked && (std::abs(stats.surface_median_m) > c.max_surface_bias_m ||
-                               stats.surface_iqr_m > c.max_iqr_to_margin * stats.surface_margin_m);
+    stats.pose_check = any_failed                               ? PoseCheck::kMisaligned
+                       : stats.surface_pairs < c.min_bias_pairs ? PoseCheck::kTooFewPairs
+                                                                : PoseCheck::kAligned;
+    stats.misaligned = stats.pose_check != PoseCheck::kAligned;
   }
-  Impl::RayContext rc;
   if (!stats.misaligned) m.cast(depth_m, K, T_prior_cam, stride_px, /*vote=*/true, &rc, &stats);
   stats.free_votes = rc.free_votes;
   stats.occupied_votes = rc.occupied_votes;

@@ -10,6 +10,7 @@
 #include <functional>
 #include <limits>
 #include <random>
+#include <string>
 #include <tuple>
 #include <vector>
 
@@ -102,19 +103,21 @@ struct Prior {
   std::vector<Label> labels;
 };
 
-// Points on a 2 cm grid over an axis-aligned rectangle (axis `fixed` at `value`), 1 mm noise.
+// Points on a grid (2 cm unless told) over an axis-aligned rectangle (axis `fixed` at `value`),
+// 1 mm noise.
 void add_grid(int fixed, double value, Eigen::Vector2d lo, Eigen::Vector2d hi, std::mt19937* rng,
-              Prior* prior, const std::function<Label(const Eigen::Vector3d&)>& label) {
+              Prior* prior, const std::function<Label(const Eigen::Vector3d&)>& label,
+              double spacing_m = kSpacing_m) {
   std::normal_distribution<double> noise(0.0, 0.001);
   const int a = (fixed + 1) % 3, b = (fixed + 2) % 3;
-  const int na = static_cast<int>(std::floor((hi[0] - lo[0]) / kSpacing_m + 1e-9));
-  const int nb = static_cast<int>(std::floor((hi[1] - lo[1]) / kSpacing_m + 1e-9));
+  const int na = static_cast<int>(std::floor((hi[0] - lo[0]) / spacing_m + 1e-9));
+  const int nb = static_cast<int>(std::floor((hi[1] - lo[1]) / spacing_m + 1e-9));
   for (int i = 0; i <= na; ++i) {
     for (int j = 0; j <= nb; ++j) {
       Eigen::Vector3d p;
       p[fixed] = value;
-      p[a] = lo[0] + i * kSpacing_m;
-      p[b] = lo[1] + j * kSpacing_m;
+      p[a] = lo[0] + i * spacing_m;
+      p[b] = lo[1] + j * spacing_m;
       const Label l = label(p);
       if (l == Label::kSkip) continue;
       CloudPoint c;
@@ -233,6 +236,26 @@ LabRun run_lab(const FreeSpaceCarverConfig& cfg, const Eigen::Isometry3d& T_erro
   return run;
 }
 
+const char* const kClusterNames[kNormalClusters] = {"+x", "-x", "+y", "-y", "+z", "-z"};
+
+// The pose check of a frame, one line: per cluster with check rays, near/far rays, median and IQR.
+std::string describe(const FreeSpaceObserveStats& st) {
+  static const char* const kChecks[] = {"off", "aligned", "misaligned", "too few pairs"};
+  std::string out = kChecks[static_cast<int>(st.pose_check)];
+  char buf[160];
+  for (int k = 0; k < kNormalClusters; ++k) {
+    const SurfaceClusterCheck& cl = st.clusters[static_cast<size_t>(k)];
+    if (cl.near_rays + cl.far_rays == 0) continue;
+    std::snprintf(buf, sizeof(buf), " | %s near %d far %d median %.1f mm iqr %.1f mm%s", kClusterNames[k],
+                  cl.near_rays, cl.far_rays, cl.median_m * 1e3, cl.iqr_m * 1e3,
+                  !cl.checked ? " (unchecked)"
+                  : cl.passed ? ""
+                              : " FAILED");
+    out += buf;
+  }
+  return out;
+}
+
 void print_tallies(const char* what, const Tally& gone, const Tally& stat) {
   std::printf(
       "[ info     ] %s: old plate %d/%d deleted (%.1f %%); static %d/%d deleted (%.3f %% of all, %.3f %% of "
@@ -250,9 +273,11 @@ TEST(FreeSpaceCarver, GivenAMovedPlateThenItsOldPlaceIsCarvedAndStaticSurfacesAr
       "points)\n",
       static_cast<long long>(run.rays), run.carve_s, run.rays / run.carve_s * 1e-6, run.prior.points.size());
   for (const FreeSpaceObserveStats& st : run.stats) {
-    EXPECT_TRUE(st.bias_checked);
-    EXPECT_FALSE(st.misaligned) << "median " << st.surface_median_m << " iqr " << st.surface_iqr_m;
-    EXPECT_LE(std::abs(st.surface_median_m), 0.001f);
+    EXPECT_EQ(st.pose_check, PoseCheck::kAligned) << describe(st);
+    EXPECT_FALSE(st.misaligned);
+    // The floor's cluster (+z) has 1300-2900 check rays per frame: its median is within 2 bins of 0.
+    ASSERT_TRUE(st.clusters[4].passed) << describe(st);
+    EXPECT_LE(std::abs(st.clusters[4].median_m), 0.001f) << describe(st);
   }
   const Tally gone = tally(run.carver, run.prior, Label::kGone);
   const Tally stat = tally(run.carver, run.prior, Label::kStatic);
@@ -312,8 +337,7 @@ TEST(FreeSpaceCarver, GivenAPoseErrorThenTheFramesAreRejectedAndNothingIsEroded)
         std::tuple{"1 deg roll", Eigen::Isometry3d::Identity(), T_roll}}) {
     LabRun run = run_lab({}, T_error_world, T_error_cam);
     for (const FreeSpaceObserveStats& st : run.stats) {
-      EXPECT_TRUE(st.misaligned) << name << ": median " << st.surface_median_m << " iqr " << st.surface_iqr_m
-                                 << " margin " << st.surface_margin_m;
+      EXPECT_EQ(st.pose_check, PoseCheck::kMisaligned) << name << ": " << describe(st);
       EXPECT_EQ(st.free_votes, 0) << name;
     }
     EXPECT_EQ(run.carver.deleted_count(), 0) << name;
@@ -325,6 +349,109 @@ TEST(FreeSpaceCarver, GivenAPoseErrorThenTheFramesAreRejectedAndNothingIsEroded)
   const Tally stat = tally(run.carver, run.prior, Label::kStatic);
   print_tallies("1 cm pose error, check off", tally(run.carver, run.prior, Label::kGone), stat);
   EXPECT_GT(stat.deleted, 0.05 * stat.observed);
+}
+
+// Errors beyond the check window (review of the first check, which only looked at pairs within
+// ±5 cm: a surface shifted beyond it dropped out and an unaffected one vouched for the frame).
+// 10 cm vertical: the floor's check rays meet the prior floor 10 cm from the measured one (far), the
+// wall's are unaffected; 3 cm along x: the wall's pairs are 3 cm off, the floor's (the majority) are
+// not. Every cluster must be right on its own.
+TEST(FreeSpaceCarver, GivenLargePoseErrorsInTheLabThenNothingStaticIsDeleted) {
+  struct Case {
+    const char* name;
+    Eigen::Vector3d t_error_m;
+  };
+  for (const Case& c : {Case{"10 cm up", {0.0, 0.0, 0.1}}, Case{"10 cm down", {0.0, 0.0, -0.1}},
+                        Case{"3 cm along +x", {0.03, 0.0, 0.0}}, Case{"3 cm along -x", {-0.03, 0.0, 0.0}}}) {
+    Eigen::Isometry3d T_error_world = Eigen::Isometry3d::Identity();
+    T_error_world.translation() = c.t_error_m;
+    LabRun run = run_lab({}, T_error_world, Eigen::Isometry3d::Identity());
+    ASSERT_EQ(run.stats.size(), 8u);
+    int rejected = 0, wall_seen = 0;
+    for (const FreeSpaceObserveStats& st : run.stats) {
+      rejected += st.misaligned ? 1 : 0;
+      const SurfaceClusterCheck& wall = st.clusters[1];   // -x: the wall's normal towards the camera
+      const SurfaceClusterCheck& floor = st.clusters[4];  // +z
+      if (wall.checked) {
+        ++wall_seen;
+        EXPECT_TRUE(st.misaligned) << c.name << ": " << describe(st);
+      }
+      if (c.t_error_m.z() != 0.0) {
+        EXPECT_TRUE(floor.checked && !floor.passed) << c.name << ": " << describe(st);
+        EXPECT_TRUE(st.misaligned) << c.name << ": " << describe(st);
+      }
+      // A frame that votes only votes with clusters that passed: not the wall's when it is off.
+      if (!st.misaligned) {
+        EXPECT_FALSE(wall.passed) << c.name << ": " << describe(st);
+      }
+    }
+    const Tally stat = tally(run.carver, run.prior, Label::kStatic);
+    std::printf("[ info     ] %s: %d/8 frames rejected (%d saw the wall); ", c.name, rejected, wall_seen);
+    print_tallies(c.name, tally(run.carver, run.prior, Label::kGone), stat);
+    EXPECT_GE(wall_seen, 3) << c.name;  // views 5-7 look at the wall
+    EXPECT_EQ(stat.deleted, 0) << c.name;
+  }
+}
+
+// The reviewer's probe: floor z = 0 and wall x = 3 on a 1 cm grid, 4 frames from (0.5, 0, 1) looking
+// at (2, 0, 0) (floor dominating, wall at the top of the image). The first check let 10 cm
+// vertical error delete 40 197 floor points and 3 cm lateral error 16 101 wall points.
+TEST(FreeSpaceCarver, GivenTheProbeGeometryWithPoseErrorsThenFramesAreRejected) {
+  std::mt19937 rng(5);
+  Prior prior;
+  constexpr double kProbeSpacing_m = 0.01;
+  add_grid(
+      2, 0.0, {-1.0, -2.0}, {4.0, 2.0}, &rng, &prior, [](const Eigen::Vector3d&) { return Label::kStatic; },
+      kProbeSpacing_m);
+  add_grid(
+      0, 3.0, {-2.0, 0.0}, {2.0, 2.0}, &rng, &prior, [](const Eigen::Vector3d&) { return Label::kStatic; },
+      kProbeSpacing_m);
+  const std::vector<Box> current = {kFloor, kWall};
+  const hal::PinholeIntrinsics K = camera(320, 240, 260.0);
+  const Eigen::Isometry3d T_world_cam = look_at({0.5, 0.0, 1.0}, {2.0, 0.0, 0.0});
+  std::vector<cv::Mat> depths;
+  for (int k = 0; k < 4; ++k) depths.push_back(render_depth(current, K, T_world_cam, 0.02, &rng));
+
+  struct Case {
+    const char* name;
+    Eigen::Vector3d t_error_m;
+    bool check;
+  };
+  for (const Case& c :
+       {Case{"exact", {0, 0, 0}, true}, Case{"10 cm up", {0, 0, 0.1}, true},
+        Case{"10 cm down", {0, 0, -0.1}, true}, Case{"3 cm along +x", {0.03, 0, 0}, true},
+        Case{"3 cm along -x", {-0.03, 0, 0}, true}, Case{"10 cm down, check off", {0, 0, -0.1}, false},
+        Case{"3 cm along +x, check off", {0.03, 0, 0}, false}}) {
+    FreeSpaceCarverConfig cfg;
+    if (!c.check) cfg.bias_check_subsample = 0;
+    FreeSpaceCarver carver = make_carver(static_cast<int>(prior.points.size()), cfg);
+    ASSERT_TRUE(carver.set_prior(prior.points.data(), static_cast<int>(prior.points.size())).ok());
+    Eigen::Isometry3d T_error_world = Eigen::Isometry3d::Identity();
+    T_error_world.translation() = c.t_error_m;
+    int rejected = 0;
+    std::string last;
+    for (const cv::Mat& depth : depths) {
+      auto stats = carver.observe(depth, K, T_error_world * T_world_cam, 1);
+      ASSERT_TRUE(stats.ok()) << stats.status().message();
+      rejected += stats->misaligned ? 1 : 0;
+      last = describe(*stats);
+      if (c.check && c.t_error_m.norm() > 0) {
+        EXPECT_TRUE(stats->misaligned) << c.name << ": " << last;
+        EXPECT_EQ(stats->free_votes, 0) << c.name;
+      }
+      if (c.t_error_m.norm() == 0) {
+        EXPECT_EQ(stats->pose_check, PoseCheck::kAligned) << c.name << ": " << last;
+        EXPECT_TRUE(stats->clusters[1].passed && stats->clusters[4].passed) << last;  // wall and floor
+      }
+    }
+    std::printf("[ info     ] probe %s: %d/4 frames rejected, %d of %zu points deleted; last frame: %s\n",
+                c.name, rejected, carver.deleted_count(), prior.points.size(), last.c_str());
+    if (c.check) {
+      EXPECT_EQ(carver.deleted_count(), 0) << c.name;
+    } else {
+      EXPECT_GT(carver.deleted_count(), 5000) << c.name;  // control: the errors do erode without the check
+    }
+  }
 }
 
 // Static scene, camera 0.35 m above the floor looking along it: the rays meet the floor 8.7-16.3°
@@ -363,11 +490,18 @@ TEST(FreeSpaceCarver, GivenGrazingViewsOfAnUnchangedFloorThenItIsNotEroded) {
 
 // A new box in front of the wall hides part of it, and the prior also holds points behind the wall
 // (another room): neither may be deleted. Removed clutter in front of the wall is the control.
+// The prior holds the floor as a real map would (without it every floor ray of the pose check meets
+// only the removed clutter, "far", and the check rightly rejects the frames): not under the
+// clutter (never seen), hidden under the new box.
 TEST(FreeSpaceCarver, GivenPriorPointsBehindTheMeasuredSurfaceThenTheyAreNeverDeleted) {
   std::mt19937 rng(3);
   const Box new_box{{2.0, -0.5, 0.0}, {2.3, 0.5, 1.0}};
   const Box old_clutter{{1.2, 0.3, 0.0}, {1.5, 0.6, 0.6}};
   Prior prior;
+  add_grid(2, 0.0, {-1.0, -2.0}, {3.0, 2.0}, &rng, &prior, [&](const Eigen::Vector3d& p) {
+    if (inside_xy(p, old_clutter, -1e-6)) return Label::kSkip;
+    return inside_xy(p, new_box, 1e-6) ? Label::kOccluded : Label::kStatic;
+  });
   add_grid(0, 3.0, {-2.0, 0.0}, {2.0, 2.0}, &rng, &prior,
            [](const Eigen::Vector3d&) { return Label::kOccluded; });
   add_grid(0, 3.5, {-2.0, 0.0}, {2.0, 2.0}, &rng, &prior,
@@ -384,14 +518,18 @@ TEST(FreeSpaceCarver, GivenPriorPointsBehindTheMeasuredSurfaceThenTheyAreNeverDe
         look_at({0.1, -0.6, 0.9}, {3.0, 0.6, 0.3})}) {
     auto stats = carver.observe(render_depth(current, K, T, 0.02, &rng), K, T, 1);
     ASSERT_TRUE(stats.ok()) << stats.status().message();
+    std::printf("[ info     ] occlusion view: %s\n", describe(*stats).c_str());
   }
   const Tally behind = tally(carver, prior, Label::kOccluded);
   const Tally gone = tally(carver, prior, Label::kGone);
+  const Tally floor = tally(carver, prior, Label::kStatic);
   std::printf(
-      "[ info     ] occlusion: %d of %d points behind surfaces deleted; removed clutter %d/%d deleted\n",
-      behind.deleted, behind.total, gone.deleted, gone.total);
+      "[ info     ] occlusion: %d of %d points behind surfaces deleted; removed clutter %d/%d deleted; floor "
+      "%d of %d observed deleted\n",
+      behind.deleted, behind.total, gone.deleted, gone.total, floor.deleted, floor.observed);
   EXPECT_GT(behind.observed, 1000);
   EXPECT_EQ(behind.deleted, 0);
+  EXPECT_LE(floor.deleted, 0.01 * floor.observed);
   ASSERT_EQ(gone.observed, gone.total);
   EXPECT_GE(gone.deleted, 0.95 * gone.total);
 }
@@ -414,8 +552,44 @@ class CarverOneRay : public ::testing::Test {
   std::vector<CloudPoint> points_;
 };
 
+// The one-ray image has 1 check ray: the pose check would reject it (see the next test); these
+// tests are about the votes, so the check is off.
+FreeSpaceCarverConfig no_pose_check() {
+  FreeSpaceCarverConfig cfg;
+  cfg.bias_check_subsample = 0;
+  return cfg;
+}
+
+TEST_F(CarverOneRay, GivenTooFewCheckRaysThenTheFrameCastsNoVotes) {
+  FreeSpaceCarver carver = make_carver(8);  // default config: check on
+  ASSERT_TRUE(carver.set_prior(points_.data(), 4).ok());
+  for (int k = 0; k < 3; ++k) {
+    auto stats = carver.observe(depth_, K_, Eigen::Isometry3d::Identity(), 1);
+    ASSERT_TRUE(stats.ok()) << stats.status().message();
+    EXPECT_EQ(stats->pose_check, PoseCheck::kTooFewPairs) << describe(*stats);  // fail closed
+    EXPECT_TRUE(stats->misaligned);
+    EXPECT_EQ(stats->rays, 0);
+    EXPECT_EQ(stats->free_votes + stats->occupied_votes, 0);
+  }
+  EXPECT_EQ(carver.deleted_count(), 0);
+  // Checked with a lower bar, the one check ray is near (the point on the surface, s = 0; the one at
+  // 1.995 m is left out so the median of one pair is exact) and the head-on plane's cluster (-z:
+  // towards the camera) votes.
+  FreeSpaceCarverConfig low;
+  low.min_bias_pairs = 1;
+  low.min_cluster_rays = 1;
+  FreeSpaceCarver lenient = make_carver(8, low);
+  const std::vector<CloudPoint> three = {points_[0], points_[2], points_[3]};
+  ASSERT_TRUE(lenient.set_prior(three.data(), 3).ok());
+  auto stats = lenient.observe(depth_, K_, Eigen::Isometry3d::Identity(), 1);
+  ASSERT_TRUE(stats.ok()) << stats.status().message();
+  EXPECT_EQ(stats->pose_check, PoseCheck::kAligned) << describe(*stats);
+  EXPECT_EQ(stats->clusters[5].near_rays, 1);
+  EXPECT_EQ(stats->rays, 25);
+}
+
 TEST_F(CarverOneRay, GivenTwoObservationsThenTheFreePointIsDeletedAndOnlyIt) {
-  FreeSpaceCarver carver = make_carver(8);
+  FreeSpaceCarver carver = make_carver(8, no_pose_check());
   ASSERT_TRUE(carver.set_prior(points_.data(), 4).ok());
   auto stats = carver.observe(depth_, K_, Eigen::Isometry3d::Identity(), 1);
   ASSERT_TRUE(stats.ok()) << stats.status().message();
@@ -450,7 +624,7 @@ TEST_F(CarverOneRay, GivenTwoObservationsThenTheFreePointIsDeletedAndOnlyIt) {
 }
 
 TEST_F(CarverOneRay, GivenAnOccupiedObservationThenTheRatioKeepsThePoint) {
-  FreeSpaceCarver carver = make_carver(8);
+  FreeSpaceCarver carver = make_carver(8, no_pose_check());
   ASSERT_TRUE(carver.set_prior(points_.data(), 4).ok());
   // Twice free (the plane at 2 m), three times occupied (a plane through the point at 1 m).
   for (int k = 0; k < 2; ++k) ASSERT_TRUE(carver.observe(depth_, K_, Eigen::Isometry3d::Identity(), 1).ok());
@@ -462,7 +636,7 @@ TEST_F(CarverOneRay, GivenAnOccupiedObservationThenTheRatioKeepsThePoint) {
 }
 
 TEST_F(CarverOneRay, GivenNaNAndInfPixelsThenTheyAreSkipped) {
-  FreeSpaceCarver carver = make_carver(8);
+  FreeSpaceCarver carver = make_carver(8, no_pose_check());
   ASSERT_TRUE(carver.set_prior(points_.data(), 4).ok());
   depth_.at<float>(4, 4) = kNaN;
   depth_.at<float>(2, 2) = std::numeric_limits<float>::infinity();
@@ -509,6 +683,15 @@ TEST_F(CarverOneRay, GivenBadInputThenClearErrors) {
   cfg.min_depth_m = 5.0f;  // above max_depth_m
   EXPECT_EQ(FreeSpaceCarver::create(cfg, 10).status().code(), core::ErrorCode::kInvalidArgument);
   EXPECT_EQ(FreeSpaceCarver::create({}, -1).status().code(), core::ErrorCode::kInvalidArgument);
+  cfg = {};
+  cfg.check_reach_behind_m = 0.01f;  // below bias_window_m: near pairs behind the surface unreachable
+  EXPECT_EQ(FreeSpaceCarver::create(cfg, 10).status().code(), core::ErrorCode::kInvalidArgument);
+  cfg = {};
+  cfg.min_near_fraction = 1.5f;
+  EXPECT_EQ(FreeSpaceCarver::create(cfg, 10).status().code(), core::ErrorCode::kInvalidArgument);
+  cfg = {};
+  cfg.embree_threads = 0;
+  EXPECT_EQ(FreeSpaceCarver::create(cfg, 10).status().code(), core::ErrorCode::kInvalidArgument);
 }
 
 TEST_F(CarverOneRay, GivenAnEmptyPriorThenObservingAndApplyingAreNoOps) {

@@ -34,11 +34,26 @@
 //    noisy ray cannot delete a point, and a point the current run also sees is kept.
 //  - Pose check: votes average out depth noise but not an error of T_prior_cam, which offsets every
 //    ray of a frame alike (1 cm of error erodes 18 % of the lab test's floor). Before voting, a
-//    sparse pass (every bias_check_subsample-th sampled pixel) histograms s of the prior points within
-//    bias_window_m of the measured planes; a frame whose median s exceeds max_surface_bias_m (a
-//    translation along the dominant normal) or whose interquartile range exceeds max_iqr_to_margin
-//    times the mean margin (a rotation: s grows across the image) casts no votes (misaligned).
-//    Quartiles resist the changed geometry inside the window as long as it is the minority.
+//    sparse pass (every bias_check_subsample-th sampled pixel) casts check rays that reach
+//    check_reach_behind_m behind the measured surface and groups them by the measured normal's
+//    dominant axis and sign in the prior frame (6 clusters: ±x, ±y, ±z), so that an aligned surface
+//    cannot vouch for a misaligned one (a vertical error leaves a wall's s unchanged). Per ray:
+//        near   it meets a prior point with |s| < bias_window_m (every such pair enters the
+//               cluster's histogram of s),
+//        far    it meets prior points, none within the window (the prior surface is beyond the
+//               window in front of or behind the measured one: a large pose error, or a scene that
+//               changed by more than the window),
+//        empty  it meets nothing (the prior has no geometry there: neither check nor vote).
+//    A cluster with >= min_cluster_rays near + far rays is checked: it fails when its near
+//    fraction is below min_near_fraction, its median s exceeds max_surface_bias_m (a translation
+//    along its normal) or its interquartile range exceeds max_iqr_to_margin times its mean margin (a
+//    rotation: s grows across the image). The check fails closed:
+//        any checked cluster fails                         -> the frame casts no votes (misaligned),
+//        the passed clusters hold < min_bias_pairs pairs   -> no votes (too few pairs to tell),
+//        otherwise only the rays of passed clusters vote; rays of clusters too small to be checked
+//        cast nothing (unverified_rays).
+//    Quartiles resist changed geometry inside the window as long as it is the minority; changes
+//    beyond the window count against the near fraction (a largely changed view keeps the prior).
 
 // Embree: one RTC_GEOMETRY_TYPE_SPHERE_POINT geometry over a buffer sized at create(); every hit
 // along a ray is classified in an intersection filter callback that then rejects it, so one BVH
@@ -47,6 +62,7 @@
 // exit); a per-point ray stamp counts it once. observe() allocates nothing; set_prior() rebuilds the
 // BVH (Embree allocates there).
 
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <vector>
@@ -79,41 +95,66 @@ struct FreeSpaceCarverConfig {
   float min_cos_incidence = 0.1f;  // rays meeting the surface beyond ~84° from its normal cast nothing
   int min_free_hits = 2;
   float free_ratio = 1.0f;
-  // Pose check: a frame whose near-surface residual (median s over pairs with |s| < bias_window_m,
-  // from a pass over every bias_check_subsample-th sampled pixel) is beyond max_surface_bias_m
-  // casts no votes. Frames with fewer than min_bias_pairs such pairs cannot be checked and do vote.
-  // bias_check_subsample = 0 turns the check off.
+  // Pose check (header): clusters of check rays by the measured normal; see the header comment.
+  // bias_check_subsample = 0 turns the check off (every ray votes).
   float max_surface_bias_m = 0.002f;
-  float bias_window_m = 0.05f;
+  float bias_window_m = 0.05f;        // near: |s| below this
+  float check_reach_behind_m = 0.3f;  // check rays end this far behind the surface (>= bias_window_m)
   float max_iqr_to_margin = 0.6f;  // ... or whose interquartile range of s exceeds this times the mean margin
+  float min_near_fraction = 0.8f;  // near / (near + far) rays of a checked cluster
+  int min_cluster_rays = 30;       // near + far check rays for a cluster to be checked
   int bias_check_subsample = 4;
-  int min_bias_pairs = 200;
+  int min_bias_pairs = 200;  // near pairs over the passed clusters, else the frame is rejected
+  // Embree worker threads (BVH builds in set_prior; rays are cast on the caller's thread). 1: the
+  // AGX control loop shares the cores.
+  int embree_threads = 1;
+};
+
+// Outcome of a frame's pose check.
+enum class PoseCheck : uint8_t {
+  kOff,          // bias_check_subsample = 0 or an empty prior: every ray votes
+  kAligned,      // every checked cluster passed: the rays of passed clusters vote
+  kMisaligned,   // a checked cluster failed: no votes
+  kTooFewPairs,  // fewer than min_bias_pairs near pairs in passed clusters: no votes
+};
+
+// Measured normals in the prior frame, by dominant axis and sign: +x, -x, +y, -y, +z, -z.
+inline constexpr int kNormalClusters = 6;
+
+struct SurfaceClusterCheck {
+  int near_rays = 0;     // check rays with a prior point within ±bias_window_m of the measured plane
+  int far_rays = 0;      // check rays meeting prior points, none within the window
+  int64_t pairs = 0;     // point-ray pairs with |s| < bias_window_m
+  float median_m = 0;    // of s over the pairs (0.5 mm bins)
+  float iqr_m = 0;       // interquartile range
+  float margin_m = 0;    // mean free margin of the pairs
+  bool checked = false;  // near + far >= min_cluster_rays
+  bool passed = false;   // checked, near fraction, median and IQR within limits: its rays vote
 };
 
 struct FreeSpaceObserveStats {
-  // Counters of the voting pass (all 0 when the frame is misaligned).
+  // Counters of the voting pass (all 0 when the frame is rejected).
   int pixels = 0;          // pixels visited (every stride-th in u and v)
   int invalid = 0;         // depth 0 / NaN / inf
   int out_of_range = 0;    // outside [min_depth_m, max_depth_m]
   int not_planar = 0;      // neighbourhood invalid, off the image, or not planar (edges)
   int grazing = 0;         // incidence beyond acos(min_cos_incidence)
+  int unverified = 0;      // rays of clusters the check did not pass (too few check rays): not cast
   int rays = 0;            // rays cast
   int64_t free_votes = 0;  // point-ray pairs classified free
   int64_t occupied_votes = 0;
-  // The pose check (0 when it is off or the prior is empty): pairs with |s| < bias_window_m and
-  // their median height above the measured planes (0.5 mm bins); far from 0: T_prior_cam is off.
-  bool bias_checked = false;  // the check pass found >= min_bias_pairs pairs
-  bool misaligned = false;    // ... and their median exceeded max_surface_bias_m: nothing voted
-  int64_t surface_pairs = 0;
-  float surface_median_m = 0;
-  float surface_iqr_m = 0;     // interquartile range
-  float surface_margin_m = 0;  // mean free margin of those pairs
+  // The pose check (header).
+  PoseCheck pose_check = PoseCheck::kOff;
+  bool misaligned = false;    // kMisaligned or kTooFewPairs: nothing voted
+  int64_t surface_pairs = 0;  // near pairs of the passed clusters
+  std::array<SurfaceClusterCheck, kNormalClusters> clusters{};
 };
 
 class FreeSpaceCarver {
  public:
   // Errors (kInvalidArgument): non-positive or non-finite config values, min_depth_m >= max_depth_m,
-  // max_points < 0, free_ratio < 0; (kUnavailable): Embree cannot create its device.
+  // max_points < 0, free_ratio < 0, check_reach_behind_m < bias_window_m, min_near_fraction outside
+  // [0, 1], embree_threads < 1; (kUnavailable): Embree cannot create its device.
   static core::Expected<FreeSpaceCarver> create(const FreeSpaceCarverConfig& config, int max_points);
   FreeSpaceCarver(FreeSpaceCarver&&) noexcept;
   FreeSpaceCarver& operator=(FreeSpaceCarver&&) noexcept;
