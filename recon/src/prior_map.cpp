@@ -5,6 +5,7 @@
 #include <cmath>
 #include <limits>
 
+#include "hwr/core/log.hpp"
 #include "hwr/estimation/descriptor.hpp"
 
 namespace hwr::recon {
@@ -41,10 +42,11 @@ double distance_to_box(const Eigen::AlignedBox3d& box, const Eigen::Vector3d& p)
 }  // namespace
 
 core::Expected<PriorMap> PriorMap::open(const std::string& dir, const PriorMapConfig& config) {
-  if (!(config.max_loaded_points >= 1) || !(config.cloud_reach_m >= 0) ||
+  if (!(config.max_loaded_points >= 1) || !(config.max_prior_features >= 1) || !(config.cloud_reach_m >= 0) ||
       !std::isfinite(config.cloud_reach_m) || config.orb_levels < 1 || !(config.orb_scale_factor >= 1.0f)) {
     return core::InvalidArgument(
-        "prior map: max_loaded_points must be >= 1, cloud_reach_m finite and >= 0, orb_levels >= 1 and "
+        "prior map: max_loaded_points and max_prior_features must be >= 1, cloud_reach_m finite and >= 0, "
+        "orb_levels >= 1 and "
         "orb_scale_factor >= 1");
   }
   auto store = MapStore::open_existing(dir);
@@ -69,9 +71,21 @@ core::Expected<PriorMap> PriorMap::open(const std::string& dir, const PriorMapCo
   static std::atomic<uint64_t> next_instance{1};
   map.instance_id_ = next_instance.fetch_add(1);
   map.segments_.reserve(list->size());
+  int64_t total_features = 0;
   for (const SegmentSummary& summary : *list) {
     auto rec = map.store_.read_keyframes(summary.segment_id);
     if (!rec.ok()) return core::Status(rec.status().code(), "prior map: " + rec.status().message());
+    // The memory bound (header, "Memory"), checked before this segment's features are kept.
+    for (const StoredKeyframe& kf : rec->keyframes)
+      total_features += static_cast<int64_t>(kf.features.size());
+    if (total_features > config.max_prior_features) {
+      return core::OutOfRange(
+          "prior map " + dir + ": more than " + std::to_string(config.max_prior_features) +
+          " keyframe features (at least " + std::to_string(total_features) + " by segment " +
+          std::to_string(summary.segment_id) + " of " + std::to_string(list->size()) +
+          ", ~190 bytes each held while relocalizing); raise PriorMapConfig::max_prior_features if the "
+          "memory is there, or give a smaller prior map");
+    }
     PriorSegment seg;
     seg.segment_id = summary.segment_id;
     seg.T_prior_segment = rec->T_world_segment;
@@ -182,6 +196,11 @@ core::Expected<PointsNearStats> PriorMap::points_near(const Eigen::Vector3d& p_p
   for (const auto& [distance, index] : near_) {
     (void)distance;
     PriorSegment& s = segments_[index];
+    if (s.unreadable) {
+      ++stats.segments_unreadable;
+      needed_[index] = 0;
+      continue;
+    }
     if (!s.loaded) {
       // Make room: evict least-recently-used clouds this query does not need.
       while (counters_.loaded_points + s.points > config_.max_loaded_points) {
@@ -200,12 +219,20 @@ core::Expected<PointsNearStats> PriorMap::points_near(const Eigen::Vector3d& p_p
       }
       const core::Status st = load_cloud(index);
       if (!st.ok()) {
-        out->clear();
-        return st;
+        // One damaged cloud must not stop every query over it: skip it from now on, say so once.
+        s.unreadable = true;
+        ++counters_.unreadable_segments;
+        ++stats.segments_unreadable;
+        needed_[index] = 0;
+        HWR_LOG_WARN("prior-map", "segment %u: cloud unreadable, skipped from now on: %s", s.segment_id,
+                     st.message().c_str());
+        continue;
       }
-      // The exact box may show the cloud is not near after all.
+      // The exact box may show the cloud is not near after all: then this query does not need it
+      // (it may be evicted to make room for a segment that is near).
       if (box_distance_m(s, p_prior_m) > radius_m) {
         last_used_[index] = stamp;
+        needed_[index] = 0;
         continue;
       }
     }

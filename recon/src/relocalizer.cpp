@@ -50,6 +50,7 @@ struct Hypothesis {
   Eigen::Isometry3d T_seed = Eigen::Isometry3d::Identity();
   bool from_orb = false;
   int orb_inliers = 0;
+  int seed_keyframe = -1;  // the prior keyframe whose features (ORB) or pose seeded it; -1: none
   NdtResult coarse;
   double coarse_score = -1;  // per source point; -1: not converged
   NdtResult fine;
@@ -136,7 +137,11 @@ struct Relocalizer::Impl {
   void subsample_source(const PointsView& local);
   // Step e: LSH matches of the current keyframe with the prior keyframes near the camera under
   // T_prior_world that this pose reprojects onto them (pixel and depth); the most over those keyframes.
-  int verify(const Eigen::Isometry3d& T_prior_world, const RelocalizationQuery& q, const PriorMap& prior);
+  // Keyframes within config.nms_keyframes of exclude_keyframe (>= 0: the ORB seed, whose matches
+  // made the pose) are not used: their agreement is not independent evidence. *keyframes_used: how
+  // many keyframes were checked.
+  int verify(const Eigen::Isometry3d& T_prior_world, const RelocalizationQuery& q, const PriorMap& prior,
+             int exclude_keyframe, int* keyframes_used);
 
   RelocalizerConfig config;
   hal::PinholeIntrinsics K;
@@ -165,7 +170,8 @@ struct Relocalizer::Impl {
   Eigen::Vector3d target_center = Eigen::Vector3d::Zero();
   std::vector<Eigen::Vector3d> keyframe_positions;
   std::vector<int> candidates;
-  std::vector<std::pair<int, int>> ranked;  // (matches, keyframe index)
+  std::vector<std::pair<int, int>> ranked;         // (matches, keyframe index)
+  std::vector<std::pair<int, int>> verify_ranked;  // verify(): (distance in 0.1 mm, keyframe index)
   std::vector<Hypothesis> hypotheses;
   std::vector<int> order;
 };
@@ -224,24 +230,28 @@ core::Status Relocalizer::Impl::gather_target(PriorMap* prior, const Eigen::Vect
 }
 
 int Relocalizer::Impl::verify(const Eigen::Isometry3d& T_prior_world, const RelocalizationQuery& q,
-                              const PriorMap& prior) {
+                              const PriorMap& prior, int exclude_keyframe, int* keyframes_used) {
   const Eigen::Isometry3d T_prior_cam = T_prior_world * q.T_world_cam;
   const Eigen::Isometry3d T_cam_prior = T_prior_cam.inverse();
   const Eigen::Vector3d axis = T_prior_cam.linear().col(2);
   const double min_cos = std::cos(config.verify_max_angle_rad);
   // The verify_keyframes nearest prior keyframes looking the same way.
   const std::vector<PriorKeyframe>& kfs = prior.keyframes();
-  ranked.clear();
+  verify_ranked.clear();
   for (size_t i = 0; i < kfs.size(); ++i) {
+    if (exclude_keyframe >= 0 && std::abs(static_cast<int>(i) - exclude_keyframe) <= config.nms_keyframes) {
+      continue;
+    }
     const double d = (kfs[i].T_prior_cam.translation() - T_prior_cam.translation()).norm();
     if (d > config.verify_radius_m || kfs[i].T_prior_cam.linear().col(2).dot(axis) < min_cos) continue;
-    ranked.emplace_back(static_cast<int>(std::lround(d * 1e4)), static_cast<int>(i));
+    verify_ranked.emplace_back(static_cast<int>(std::lround(d * 1e4)), static_cast<int>(i));
   }
-  std::sort(ranked.begin(), ranked.end());
+  std::sort(verify_ranked.begin(), verify_ranked.end());
   int best = 0;
-  const int n_kf = std::min(config.verify_keyframes, static_cast<int>(ranked.size()));
+  const int n_kf = std::min(config.verify_keyframes, static_cast<int>(verify_ranked.size()));
+  *keyframes_used = n_kf;
   for (int r = 0; r < n_kf; ++r) {
-    const PriorKeyframe& kf = kfs[static_cast<size_t>(ranked[static_cast<size_t>(r)].second)];
+    const PriorKeyframe& kf = kfs[static_cast<size_t>(verify_ranked[static_cast<size_t>(r)].second)];
     const int n = current_index.match(kf.features, matches.data(), max_features);
     int agree = 0;
     for (int i = 0; i < n; ++i) {
@@ -299,11 +309,10 @@ core::Expected<Relocalizer> Relocalizer::create(const RelocalizerConfig& c, cons
   if (!K.valid()) return core::InvalidArgument("relocalizer: invalid intrinsics");
   if (max_features < 1) return core::InvalidArgument("relocalizer: max_features must be >= 1");
   if (c.top_k < 1 || c.keep_best < 1 || c.keep_best > 3 || c.min_orb_inliers < 3 || c.min_votes < 0 ||
-      c.verify_keyframes < 0 || c.yaw_sweep_steps < 0) {
+      c.verify_keyframes < 0 || c.yaw_sweep_steps < 0 || c.rival_scan < 0 || c.nms_keyframes < 0) {
     return core::InvalidArgument(
         "relocalizer: top_k >= 1, keep_best in [1, 3], min_orb_inliers >= 3, min_votes >= 0, "
-        "verify_keyframes >= 0 and "
-        "yaw_sweep_steps >= 0 required");
+        "verify_keyframes >= 0, yaw_sweep_steps >= 0, rival_scan >= 0 and nms_keyframes >= 0 required");
   }
   if (c.max_source_points < 1 || c.max_source_points > c.ndt_coarse.max_source_points ||
       c.max_source_points > c.ndt_fine.max_source_points || c.max_target_points < 1 ||
@@ -435,6 +444,18 @@ RelocalizationResult Relocalizer::relocalize(const RelocalizationQuery& q, Prior
     const double gate = cfg.yaw_gate_sigmas * q.yaw_sigma_rad + cfg.yaw_gate_margin_rad;
     return std::abs(wrap_pi(yaw_of(T_prior_world.linear()) - q.yaw_prior_rad)) <= gate;
   };
+  const Eigen::Vector3d p_world_cam = q.T_world_cam.translation();
+  // Horizontal distance of the camera under T_prior_world from the position prior, and its gate.
+  const double position_gate_m = cfg.position_gate_sigmas * q.position.sigma_m + cfg.position_gate_margin_m;
+  auto position_offset_m = [&](const Eigen::Isometry3d& T_prior_world) {
+    const Eigen::Vector3d p = T_prior_world * p_world_cam;
+    return std::hypot(p.x() - q.position.p_prior_m.x(), p.y() - q.position.p_prior_m.y());
+  };
+  // A pose the priors allow (yaw gate, position gate).
+  auto gates_ok = [&](const Eigen::Isometry3d& T_prior_world) {
+    return yaw_ok(T_prior_world) &&
+           (!q.position.valid || position_offset_m(T_prior_world) <= position_gate_m);
+  };
   // Merges near-duplicate seeds (keeps the one with more ORB inliers); true when `h` was added.
   auto add_hypothesis = [&](const Hypothesis& h) {
     for (Hypothesis& o : m.hypotheses) {
@@ -481,6 +502,7 @@ RelocalizationResult Relocalizer::relocalize(const RelocalizationQuery& q, Prior
     h.T_seed = rr.T_cam_world.inverse() * q.T_world_cam.inverse();  // T_prior_cam * T_cam_world
     h.from_orb = true;
     h.orb_inliers = rr.inliers;
+    h.seed_keyframe = c;
     if (!yaw_ok(h.T_seed)) {
       ++res.counters.yaw_rejected;
       continue;
@@ -490,7 +512,6 @@ RelocalizationResult Relocalizer::relocalize(const RelocalizationQuery& q, Prior
   const bool have_orb = !m.hypotheses.empty();
 
   // Seeds without ORB: the position prior (GNSS), and the paper's candidate keyframe poses.
-  const Eigen::Vector3d p_world_cam = q.T_world_cam.translation();
   auto seed_at = [&](const Eigen::Matrix3d& R_prior_world, const Eigen::Vector3d& p_prior_cam) {
     Hypothesis h;
     h.T_seed.linear() = R_prior_world;
@@ -514,6 +535,7 @@ RelocalizationResult Relocalizer::relocalize(const RelocalizationQuery& q, Prior
         // is assumed where the candidate's was, looking the same way.
         Hypothesis h;
         h.T_seed = kf.T_prior_cam * q.T_world_cam.inverse();
+        h.seed_keyframe = c;
         if (add_hypothesis(h)) ++res.counters.fallback_seeds;
       }
     }
@@ -540,10 +562,18 @@ RelocalizationResult Relocalizer::relocalize(const RelocalizationQuery& q, Prior
     return m.hypotheses[static_cast<size_t>(a)].coarse_score >
            m.hypotheses[static_cast<size_t>(b)].coarse_score;
   });
+  // The priors choose among the fits first: with a position or yaw prior, a fit that contradicts it
+  // is not refined while one that agrees exists (in a repetitive region the copy the prior points
+  // at may score no better than the others).
+  bool any_gated = false;
+  for (const Hypothesis& h : m.hypotheses) {
+    any_gated = any_gated || (h.coarse_score >= 0 && gates_ok(h.coarse.T_target_source));
+  }
   int picked = 0;
   for (int i : m.order) {
     Hypothesis& h = m.hypotheses[static_cast<size_t>(i)];
     if (picked >= cfg.keep_best || h.coarse_score < 0) break;
+    if (any_gated && !gates_ok(h.coarse.T_target_source)) continue;
     bool duplicate = false;
     for (const Hypothesis& o : m.hypotheses) {
       if (!o.fine_run) continue;
@@ -575,7 +605,11 @@ RelocalizationResult Relocalizer::relocalize(const RelocalizationQuery& q, Prior
   for (const Hypothesis& h : m.hypotheses) {
     if (!h.fine_run) continue;
     if (ns < 3) scores[static_cast<size_t>(ns++)] = std::max(0.0, h.fine_score);
-    if (h.fine_score >= 0 && (best == nullptr || h.fine_score > best->fine_score)) best = &h;
+    if (h.fine_score < 0) continue;
+    // A fit the priors allow beats one they do not, whatever the scores.
+    const bool ok = gates_ok(h.fine.T_target_source);
+    const bool best_ok = best != nullptr && gates_ok(best->fine.T_target_source);
+    if (best == nullptr || (ok && !best_ok) || (ok == best_ok && h.fine_score > best->fine_score)) best = &h;
   }
   std::sort(scores.begin(), scores.end(), [](double a, double b) { return a > b; });
   res.best_scores = scores;
@@ -607,9 +641,8 @@ RelocalizationResult Relocalizer::relocalize(const RelocalizationQuery& q, Prior
                yaw_of(T.linear()) * kRadToDeg, q.yaw_prior_rad * kRadToDeg));
   }
   if (q.position.valid) {
-    const Eigen::Vector3d p = T * p_world_cam;
-    const double d = std::hypot(p.x() - q.position.p_prior_m.x(), p.y() - q.position.p_prior_m.y());
-    const double gate = cfg.position_gate_sigmas * q.position.sigma_m + cfg.position_gate_margin_m;
+    const double d = position_offset_m(T);
+    const double gate = position_gate_m;
     if (d > gate) {
       return done(RelocalizationReason::kPriorDisagreement,
                   format("relocalizer: best fit puts the camera %.2f m from the position prior (gate %.2f m)",
@@ -626,40 +659,174 @@ RelocalizationResult Relocalizer::relocalize(const RelocalizationQuery& q, Prior
     }
   }
   // Appearance agrees: NDT alone cannot tell symmetric places apart (the lab's two bench rows).
-  res.verified_matches = m.verify(T, q, *prior);
+  // Independent evidence only: for an ORB seed, not its own keyframe (nor its neighbours), whose
+  // RANSAC inliers made the pose and would agree with it by construction.
+  const int exclude = best->from_orb ? best->seed_keyframe : -1;
+  res.verified_matches = m.verify(T, q, *prior, exclude, &res.verify_keyframes_used);
+  if (cfg.require_orb_verification && res.verify_keyframes_used == 0) {
+    return done(RelocalizationReason::kNotVerified,
+                format("relocalizer: no prior keyframe within %.1f m of the fitted camera, looking the same "
+                       "way, other than the ORB seed keyframe and its %.0f neighbours each side: the fit "
+                       "cannot be checked independently",
+                       cfg.verify_radius_m, cfg.nms_keyframes));
+  }
   if (cfg.require_orb_verification && res.verified_matches < cfg.min_verified_matches) {
     return done(RelocalizationReason::kNotVerified,
-                "relocalizer: only " + std::to_string(res.verified_matches) +
-                    " ORB matches of nearby prior keyframes agree with the best fit (need " +
+                "relocalizer: only " + std::to_string(res.verified_matches) + " ORB matches of " +
+                    std::to_string(res.verify_keyframes_used) +
+                    " nearby prior keyframes (the seed's excluded) agree with the best fit (need " +
                     std::to_string(cfg.min_verified_matches) + ")");
   }
-  // Unambiguous: the best beats every distinct competitor by the margin, fine and coarse.
+
+  // Unambiguous: the best beats every distinct rival the priors allow by the margin, fine and
+  // coarse. Rivals: the other refined hypotheses, and always at least an attempt at two more (so
+  // that a single surviving hypothesis does not pass by default): the best turned 180 deg about
+  // the vertical through the local map's centroid (a symmetric place), and the best RANSAC pose,
+  // distinct from the fit, of the next appearance candidates (the second vote cluster: a repeated
+  // place); when those give none, NDT from the pose of the best-voted candidate keyframe away
+  // from the fit (the paper's keyframe seed). A rival counts as evaluated when its NDT gave a pose
+  // (its score competes when the priors allow it and it is distinct from the best; converging back onto
+  // the best, or where the priors exclude it, is evidence for it).
   auto distinct = [&](const Eigen::Isometry3d& A) {
     const PoseDistance d = pose_distance(A, T, m.centroid_world);
     return d.m > cfg.distinct_m || d.rad > cfg.distinct_rad;
   };
   double fine_rival = 0, coarse_rival = 0;
   for (const Hypothesis& h : m.hypotheses) {
-    if (h.fine_run && h.fine_score >= 0 && distinct(h.fine.T_target_source)) {
-      fine_rival = std::max(fine_rival, h.fine_score);
+    if (&h == best) continue;
+    if (h.fine_run && h.fine_score >= 0 && gates_ok(h.fine.T_target_source)) {
+      ++res.rivals_evaluated;
+      if (distinct(h.fine.T_target_source)) fine_rival = std::max(fine_rival, h.fine_score);
     }
-    if (h.coarse_score >= 0 && distinct(h.coarse.T_target_source))
+    if (h.coarse_score >= 0 && distinct(h.coarse.T_target_source) && gates_ok(h.coarse.T_target_source)) {
       coarse_rival = std::max(coarse_rival, h.coarse_score);
+    }
+  }
+  // NDT, coarse then fine, from a rival seed; true when a distinct rival was scored.
+  auto evaluate_rival = [&](const Eigen::Isometry3d& T_seed) -> core::Status {
+    Hypothesis r;
+    PointsView target;
+    core::Status st = m.gather_target(prior, T_seed * m.centroid_world, &target, &res.counters);
+    if (!st.ok()) return st;
+    ++res.counters.ndt_runs;
+    ++res.counters.rival_seeds;
+    r.coarse = m.ndt_coarse.align(target, source, T_seed);
+    if (!finite_pose(r.coarse.T_target_source) || r.coarse.failure == NdtFailure::kNonFinite ||
+        r.coarse.failure == NdtFailure::kInvalidInput) {
+      return core::Status::Ok();
+    }
+    if (r.coarse.converged && distinct(r.coarse.T_target_source) && gates_ok(r.coarse.T_target_source)) {
+      coarse_rival = std::max(coarse_rival, r.coarse.score / m.n_source);
+    }
+    st = m.gather_target(prior, r.coarse.T_target_source * m.centroid_world, &target, &res.counters);
+    if (!st.ok()) return st;
+    ++res.counters.ndt_runs;
+    r.fine = m.ndt_fine.align(target, source, r.coarse.T_target_source);
+    if (!finite_pose(r.fine.T_target_source) || r.fine.failure == NdtFailure::kNonFinite ||
+        r.fine.failure == NdtFailure::kInvalidInput) {
+      return core::Status::Ok();
+    }
+    // Evaluated: NDT gave a pose. It competes when the priors allow it and it is distinct, converged
+    // or not (fail closed: a rival that fits well but ran out of iterations still competes).
+    ++res.rivals_evaluated;
+    if (distinct(r.fine.T_target_source) && gates_ok(r.fine.T_target_source)) {
+      fine_rival = std::max(fine_rival, std::max(0.0, r.fine.score / m.n_source));
+    }
+    return core::Status::Ok();
+  };
+  {
+    // The fit turned 180 deg about the vertical through the local map's centroid, or, with a
+    // position prior, through the camera (so that the rival agrees with that prior and competes).
+    const Eigen::Translation3d to_pivot(q.position.valid ? p_world_cam : m.centroid_world);
+    const Eigen::Isometry3d T_flip =
+        T * (to_pivot * Eigen::AngleAxisd(kPi, Eigen::Vector3d::UnitZ()) * to_pivot.inverse());
+    if (gates_ok(T_flip)) {
+      const core::Status st = evaluate_rival(T_flip);
+      if (!st.ok()) return done(RelocalizationReason::kPriorMapError, st.message());
+    }
+  }
+  const int seed_kf = best->seed_keyframe;
+  auto near_seed = [&](int c) { return seed_kf >= 0 && std::abs(c - seed_kf) <= cfg.nms_keyframes; };
+  auto tried = [&](int c) { return std::find(m.selected.begin(), m.selected.end(), c) != m.selected.end(); };
+  const Eigen::Vector3d p_prior_fit = T * p_world_cam;
+  bool cluster_rival = false;
+  int scanned = 0;
+  for (const auto& [votes, c] : m.ranked) {
+    // Any vote: in a repeated place the nearest descriptors of the twin keyframes often belong to
+    // the other copy. Keyframes at the fitted camera's place (within verify_radius_m) would give
+    // the same pose again and are not matched.
+    if (scanned >= cfg.rival_scan || votes < 1) break;
+    if (near_seed(c) || tried(c)) continue;
+    const PriorKeyframe& kf = kfs[static_cast<size_t>(c)];
+    if ((kf.T_prior_cam.translation() - p_prior_fit).norm() <= cfg.verify_radius_m) continue;
+    const int n = m.current_index.match(kf.features, m.matches.data(), m.max_features);
+    int nc = 0;
+    for (int i = 0; i < n; ++i) {
+      const estimation::Feature& fp = kf.features.feature(m.matches[static_cast<size_t>(i)].query);
+      const estimation::Feature& fc = q.features->feature(m.matches[static_cast<size_t>(i)].train);
+      if (!(fp.depth_m > 0)) continue;
+      estimation::Correspondence& corr = m.correspondences[static_cast<size_t>(nc++)];
+      corr.p_world = kf.T_prior_cam * fp.p_cam_m;
+      corr.uv_px = {fc.u_px, fc.v_px};
+      corr.depth_m = fc.depth_m;
+      corr.octave = fc.octave;
+    }
+    ++scanned;
+    if (nc < cfg.min_orb_inliers) continue;
+    ++res.counters.ransac_runs;
+    const estimation::PoseRansacResult rr =
+        m.ransac.solve(m.correspondences.data(), nc, m.K, cfg.ransac, m.inlier_mask.data());
+    if (!rr.ok || rr.inliers < cfg.min_orb_inliers || !finite_pose(rr.T_cam_world)) continue;
+    ++res.counters.ransac_hypotheses;
+    const Eigen::Isometry3d T_seed = rr.T_cam_world.inverse() * q.T_world_cam.inverse();
+    if (!distinct(T_seed) || !gates_ok(T_seed)) continue;
+    const core::Status st = evaluate_rival(T_seed);
+    if (!st.ok()) return done(RelocalizationReason::kPriorMapError, st.message());
+    cluster_rival = true;
+    break;
+  }
+  if (!cluster_rival) {
+    for (const auto& [votes, c] : m.ranked) {
+      (void)votes;
+      const PriorKeyframe& kf = kfs[static_cast<size_t>(c)];
+      if (near_seed(c) || (kf.T_prior_cam.translation() - p_prior_fit).norm() <= cfg.distinct_m) continue;
+      Eigen::Isometry3d T_seed = kf.T_prior_cam * q.T_world_cam.inverse();
+      if (q.yaw_valid) {
+        T_seed.linear() = rot_z(q.yaw_prior_rad);
+        T_seed.translation() = kf.T_prior_cam.translation() - T_seed.linear() * p_world_cam;
+      }
+      if (!gates_ok(T_seed)) continue;
+      const core::Status st = evaluate_rival(T_seed);
+      if (!st.ok()) return done(RelocalizationReason::kPriorMapError, st.message());
+      break;
+    }
   }
   const double fine_margin = (best->fine_score - fine_rival) / best->fine_score;
   const double coarse_margin =
       best->coarse_score > 0 ? (best->coarse_score - coarse_rival) / best->coarse_score : -1.0;
   res.score_margin = std::min(fine_margin, coarse_margin);
+  res.margin_known = res.rivals_evaluated > 0;
+  if (!res.margin_known && !(q.position.valid && q.yaw_valid)) {
+    // Fail closed: nothing shows that another place could not fit as well; only a position and a
+    // yaw prior together pin the pose without a rival.
+    return done(RelocalizationReason::kAmbiguous,
+                "relocalizer: no rival pose could be evaluated (none distinct from the fit among the "
+                "hypotheses, the 180 deg turn, the next candidates), so its uniqueness is unknown; "
+                "without both a position and a yaw prior that is not accepted");
+  }
   if (!(res.score_margin >= cfg.min_score_margin)) {
     return done(
         RelocalizationReason::kAmbiguous,
         format("relocalizer: a distinct pose fits almost as well (score margin fine %.2f, coarse %.2f, "
-               "need %.2f)",
-               fine_margin, coarse_margin, cfg.min_score_margin));
+               "need %.2f; %.0f rivals evaluated)",
+               fine_margin, coarse_margin, cfg.min_score_margin, res.rivals_evaluated));
   }
-  return done(RelocalizationReason::kLocalized,
-              format("relocalizer: localized, inlier ratio %.2f, score margin %.2f, %.0f ORB inliers",
-                     best->fine.inlier_ratio, res.score_margin, best->orb_inliers));
+  return done(
+      RelocalizationReason::kLocalized,
+      format("relocalizer: localized, inlier ratio %.2f, score margin %.2f over %.0f rivals, %.0f ORB "
+             "inliers",
+             best->fine.inlier_ratio, res.score_margin, res.rivals_evaluated, best->orb_inliers) +
+          (res.margin_known ? "" : " (no rival: the position and yaw priors pin the pose)"));
 }
 
 }  // namespace hwr::recon

@@ -3,9 +3,11 @@
 // poses, descriptors and eq. 3 back-projections (recomputed here in double from the stored u, v,
 // depth); no cloud is read at open; points_near returns exactly the points a brute-force search
 // over every segment (moved to the prior frame with T_world_segment here) finds in the ball; a
-// point budget evicts the least-recently-used cloud and skips what does not fit; a damaged
-// keyframes.bin fails open() and a damaged cloud.bin fails the query that needs it, each with
-// kCorruptData naming the file, and a missing store is kNotFound naming the path.
+// point budget evicts the least-recently-used cloud no query needs (a cloud read for its estimated
+// box and found far is not needed) and skips what does not fit; a damaged keyframes.bin fails
+// open() with kCorruptData naming the file, a damaged cloud.bin is skipped (counted, never read
+// again) while the other segments answer, a missing store is kNotFound naming the path, and a
+// prior with more features than max_prior_features is refused (kOutOfRange).
 
 #include <unistd.h>
 
@@ -330,7 +332,8 @@ TEST(PriorMap, GivenAMissingOrDamagedStoreThenTheErrorNamesTheFile) {
 
   const std::vector<SegmentRecord> segments = make_segments();
   write_store(tmp.file("store"), segments);
-  // A damaged cloud is found when it is needed (the clouds are lazy), not at open.
+  // A damaged cloud is found when it is needed (the clouds are lazy), not at open; it is then
+  // skipped, counted and never read again, and the other segments still answer.
   const std::string cloud1 = tmp.file("store") + "/segments/seg_000001/cloud.bin";
   flip_byte(cloud1, 48 + 100);
   PriorMapConfig config;
@@ -339,11 +342,31 @@ TEST(PriorMap, GivenAMissingOrDamagedStoreThenTheErrorNamesTheFile) {
   ASSERT_TRUE(map.ok()) << map.status().message();
   std::vector<CloudPoint> out;
   ASSERT_TRUE(map->points_near(segment_pose(0).translation(), 4.0, &out).ok());
+  EXPECT_EQ(map->counters().cloud_loads, 1u);
   auto bad = map->points_near(segment_pose(1).translation(), 4.0, &out);
-  ASSERT_FALSE(bad.ok());
-  EXPECT_EQ(bad.status().code(), core::ErrorCode::kCorruptData);
-  EXPECT_NE(bad.status().message().find(cloud1), std::string::npos) << bad.status().message();
+  ASSERT_TRUE(bad.ok()) << bad.status().message();
+  EXPECT_EQ(bad->segments_near, 1);
+  EXPECT_EQ(bad->segments_unreadable, 1);
+  EXPECT_EQ(bad->segments_used, 0);
   EXPECT_TRUE(out.empty());
+  EXPECT_EQ(map->counters().unreadable_segments, 1);
+  EXPECT_TRUE(map->segments()[1].unreadable);
+  EXPECT_FALSE(map->segments()[1].loaded);
+  EXPECT_EQ(map->counters().cloud_loads, 1u);
+  // A ball over segments 0 and 1: segment 0's points, exactly; segment 1 is not tried again.
+  const Eigen::Vector3d c0 = segment_pose(0).translation(), c1 = segment_pose(1).translation();
+  const Eigen::Vector3d between = c0 + 0.2 * (c1 - c0);
+  const double radius = (c1 - between).norm() + 0.5;
+  auto partial = map->points_near(between, radius, &out);
+  ASSERT_TRUE(partial.ok()) << partial.status().message();
+  EXPECT_EQ(partial->segments_near, 2);
+  EXPECT_EQ(partial->segments_used, 1);
+  EXPECT_EQ(partial->segments_unreadable, 1);
+  std::vector<SegmentRecord> only0(segments.begin(), segments.begin() + 1);
+  expect_same_points(expected_near(only0, between, radius), out);
+  EXPECT_FALSE(out.empty());
+  EXPECT_EQ(map->counters().unreadable_segments, 1);
+  EXPECT_EQ(map->counters().cloud_loads, 1u);
 
   // A damaged keyframes.bin fails open().
   const std::string kf2 = tmp.file("store") + "/segments/seg_000002/keyframes.bin";
@@ -352,6 +375,91 @@ TEST(PriorMap, GivenAMissingOrDamagedStoreThenTheErrorNamesTheFile) {
   ASSERT_FALSE(broken.ok());
   EXPECT_EQ(broken.status().code(), core::ErrorCode::kCorruptData);
   EXPECT_NE(broken.status().message().find(kf2), std::string::npos) << broken.status().message();
+}
+
+TEST(PriorMap, GivenRoomForTwoOfThreeCloudsThenTheLeastRecentlyUsedUnneededOneIsTheVictim) {
+  TempDir tmp;
+  const std::vector<SegmentRecord> segments = make_segments();
+  write_store(tmp.file("store"), segments);
+  PriorMapConfig config;
+  config.cloud_reach_m = 2.5;
+  config.max_loaded_points = 2 * kPointsPerSegment + kPointsPerSegment / 2;  // room for two clouds
+  auto map = PriorMap::open(tmp.file("store"), config);
+  ASSERT_TRUE(map.ok()) << map.status().message();
+  std::vector<CloudPoint> out;
+  const Eigen::Vector3d c[3] = {segment_pose(0).translation(), segment_pose(1).translation(),
+                                segment_pose(2).translation()};
+  ASSERT_TRUE(map->points_near(c[0], 4.0, &out).ok());
+  ASSERT_TRUE(map->points_near(c[1], 4.0, &out).ok());
+  EXPECT_EQ(map->counters().cloud_evictions, 0u);
+  // Segment 0 used again: segment 1 is now the least recently used, so segment 2 evicts it (not 0,
+  // the first loaded nor the lowest index).
+  ASSERT_TRUE(map->points_near(c[0], 4.0, &out).ok());
+  ASSERT_TRUE(map->points_near(c[2], 4.0, &out).ok());
+  EXPECT_EQ(map->counters().cloud_loads, 3u);
+  EXPECT_EQ(map->counters().cloud_evictions, 1u);
+  EXPECT_TRUE(map->segments()[0].loaded);
+  EXPECT_FALSE(map->segments()[1].loaded);
+  EXPECT_TRUE(map->segments()[2].loaded);
+  expect_same_points(expected_near(segments, c[2], 4.0), out);
+  // Now 0 is the oldest: segment 1 comes back in its place.
+  ASSERT_TRUE(map->points_near(c[1], 4.0, &out).ok());
+  EXPECT_FALSE(map->segments()[0].loaded);
+  EXPECT_TRUE(map->segments()[1].loaded);
+  EXPECT_TRUE(map->segments()[2].loaded);
+  EXPECT_EQ(map->counters().cloud_evictions, 2u);
+  EXPECT_LE(map->counters().loaded_points, config.max_loaded_points);
+}
+
+TEST(PriorMap, GivenASegmentLoadedForItsEstimatedBoxButNotNearThenItCanBeEvictedInTheSameQuery) {
+  TempDir tmp;
+  const std::vector<SegmentRecord> segments = make_segments();
+  write_store(tmp.file("store"), segments);
+  // A reach of 28 m: before their clouds are read, segments 0 and 2 (30 m away) seem within 4 m of
+  // segment 1's origin (about 1.5 and 2 m: 0 comes first); their clouds show they are not.
+  PriorMapConfig config;
+  config.cloud_reach_m = 28.0;
+  config.max_loaded_points = 2 * kPointsPerSegment + kPointsPerSegment / 2;  // room for two clouds
+  auto map = PriorMap::open(tmp.file("store"), config);
+  ASSERT_TRUE(map.ok()) << map.status().message();
+  std::vector<CloudPoint> out;
+  const Eigen::Vector3d c1 = segment_pose(1).translation();
+  auto st = map->points_near(c1, 4.0, &out);
+  ASSERT_TRUE(st.ok()) << st.status().message();
+  EXPECT_EQ(st->segments_near, 3);
+  EXPECT_EQ(st->segments_used, 1);
+  // Segment 0, loaded and found far, is evicted to read segment 2 instead of that being refused.
+  EXPECT_EQ(st->segments_over_budget, 0);
+  EXPECT_EQ(map->counters().cloud_loads, 3u);
+  EXPECT_EQ(map->counters().cloud_evictions, 1u);
+  EXPECT_FALSE(map->segments()[0].loaded);
+  EXPECT_TRUE(map->segments()[1].loaded);
+  EXPECT_TRUE(map->segments()[2].loaded);
+  EXPECT_TRUE(map->segments()[0].cloud_box_known && map->segments()[2].cloud_box_known);
+  expect_same_points(expected_near(segments, c1, 4.0), out);
+  EXPECT_EQ(out.size(), static_cast<size_t>(kPointsPerSegment));
+  // Their boxes are known now: the same query reads nothing more.
+  st = map->points_near(c1, 4.0, &out);
+  ASSERT_TRUE(st.ok());
+  EXPECT_EQ(st->segments_near, 1);
+  EXPECT_EQ(map->counters().cloud_loads, 3u);
+}
+
+TEST(PriorMap, GivenMoreKeyframeFeaturesThanTheBoundThenOpenFailsSayingSo) {
+  TempDir tmp;
+  write_store(tmp.file("store"), make_segments());
+  constexpr int kTotal = kSegments * kKeyframesPerSegment * kFeaturesPerKeyframe;  // 300
+  PriorMapConfig config;
+  config.max_prior_features = kTotal;
+  auto fits = PriorMap::open(tmp.file("store"), config);
+  ASSERT_TRUE(fits.ok()) << fits.status().message();
+  config.max_prior_features = kTotal - 1;
+  auto over = PriorMap::open(tmp.file("store"), config);
+  ASSERT_FALSE(over.ok());
+  EXPECT_EQ(over.status().code(), core::ErrorCode::kOutOfRange);
+  EXPECT_NE(over.status().message().find("max_prior_features"), std::string::npos) << over.status().message();
+  config.max_prior_features = 0;
+  EXPECT_EQ(PriorMap::open(tmp.file("store"), config).status().code(), core::ErrorCode::kInvalidArgument);
 }
 
 TEST(MapStore, GivenASegmentWhenReadKeyframesThenKeyframesWithoutTheCloud) {

@@ -13,10 +13,14 @@
 // they are: each Feature's p_cam_m is rebuilt from (u, v, depth) with the store's intrinsics
 // (paper eq. 3, p_cam = ((u - cx) z / fx, (v - cy) z / fy, z), as GridOrbExtractor computes it).
 //
-// Memory: keyframes ~ (56 + 32) bytes per feature, held for the map's lifetime; clouds 16 bytes per
-// point, at most max_loaded_points of them (plus the one segment being read). points_near() writes
-// into the caller's vector, which keeps its capacity between calls. Loading a cloud allocates (it
-// reads a file); this class runs off the control loop.
+// Memory held for the map's lifetime: every keyframe feature, ~88 bytes each (a 56-byte
+// estimation::Feature with its eq. 3 point + its 32-byte ORB descriptor), and, once a Relocalizer
+// has indexed the map (Relocalizer::prepare), its LSH vote index over those descriptors, ~100 bytes
+// per feature more: ~190 bytes per prior feature in all (the sim lab's 80 s prior: 158k features,
+// ~30 MB). PriorMapConfig::max_prior_features bounds it: open() refuses a larger prior (kOutOfRange).
+// Clouds: 16 bytes per point, at most max_loaded_points of them (plus the one segment being read).
+// points_near() writes into the caller's vector, which keeps its capacity between calls. Loading a
+// cloud allocates (it reads a file); this class runs off the control loop.
 
 #include <cstdint>
 #include <string>
@@ -34,6 +38,9 @@ namespace hwr::recon {
 struct PriorMapConfig {
   // Clouds kept in memory, points in all loaded segments together (16 bytes each).
   int64_t max_loaded_points = 3'000'000;
+  // Keyframe features of the whole prior, held for the map's lifetime (~190 bytes each with the
+  // relocalizer's vote index, see "Memory" above): 2M ~ 380 MB. open() fails beyond it.
+  int64_t max_prior_features = 2'000'000;
   // Before a segment's cloud was ever read its extent is unknown: it is taken as the box of its
   // keyframe positions grown by this reach (the keyframe clouds' max_depth_m, keyframe_cloud.hpp).
   // Once read, the cloud's own box replaces it (kept after eviction).
@@ -67,6 +74,7 @@ struct PriorSegment {
   Eigen::AlignedBox3d cloud_box_prior;         // its points (valid when cloud_box_known)
   int64_t points = 0;                          // cloud size (segment.yaml)
   bool loaded = false;                         // cloud in memory now
+  bool unreadable = false;  // its cloud failed to read once: skipped by points_near from then on
 };
 
 struct PriorMapCounters {
@@ -75,6 +83,7 @@ struct PriorMapCounters {
   uint64_t queries = 0;          // points_near calls
   int64_t loaded_points = 0;     // in memory now
   int loaded_segments = 0;       // in memory now
+  int unreadable_segments = 0;   // clouds that failed to read (logged once each, then skipped)
 };
 
 // What one points_near() call used.
@@ -82,6 +91,7 @@ struct PointsNearStats {
   int segments_near = 0;         // segments whose (known or estimated) box is within the radius
   int segments_used = 0;         // ... whose cloud was searched
   int segments_over_budget = 0;  // near, but their cloud did not fit the budget: not searched
+  int segments_unreadable = 0;   // near, but their cloud cannot be read (corrupt, missing): not searched
   int64_t points = 0;            // written to the output
 };
 
@@ -90,7 +100,8 @@ class PriorMap {
   // Opens the store at `dir` (MapStore::open_existing) and reads every segment's keyframes.
   // Errors carry the store's status and path: kNotFound (no store at dir), kCorruptData /
   // kParseError (a damaged store.yaml, segment.yaml or keyframes.bin), kInvalidArgument (a store
-  // without segments, descriptors that are not 32-byte ORB, invalid intrinsics or config).
+  // without segments, descriptors that are not 32-byte ORB, invalid intrinsics or config),
+  // kOutOfRange (more keyframe features than config.max_prior_features).
   static core::Expected<PriorMap> open(const std::string& dir, const PriorMapConfig& config = {});
 
   const StoreMetadata& metadata() const { return store_.metadata(); }
@@ -107,9 +118,11 @@ class PriorMap {
   // p_prior_m, from the segments whose box comes within radius_m of it; loads those clouds (nearest
   // segment first) and evicts least-recently-used others beyond max_loaded_points. A near segment
   // that does not fit the budget even with every other cloud evicted is skipped and counted in
-  // the stats (the answer is then partial, never wrong). Errors: a cloud that fails to read
-  // (kCorruptData etc., naming the file; `out` then holds nothing), radius not positive and finite
-  // or a non-finite position (kInvalidArgument).
+  // the stats (the answer is then partial, never wrong). A near segment whose cloud fails to read
+  // (corrupt or missing cloud.bin) is marked unreadable, logged once (a warning naming the file and
+  // the store's error), counted (counters().unreadable_segments) and skipped by this and every later
+  // query (stats.segments_unreadable): the answer is then partial, from the other segments. Errors:
+  // radius not positive and finite or a non-finite position (kInvalidArgument).
   core::Expected<PointsNearStats> points_near(const Eigen::Vector3d& p_prior_m, double radius_m,
                                               std::vector<CloudPoint>* out);
 

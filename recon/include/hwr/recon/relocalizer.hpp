@@ -36,10 +36,22 @@
 //     most max_ndt_correction_m / _rad; the current keyframe's ORB matches with the prior keyframes
 //     near the fitted camera agree with the fit (NDT alone cannot tell symmetric places apart: in
 //     the sim lab it put the north bench row onto the south one, 17.8 m / 180 deg off, at an inlier
-//     ratio of 0.93); and its score per source point beats that of the best
-//     hypothesis more than distinct_m or distinct_rad away, at the fine and at the coarse
-//     resolution, by min_score_margin (relative). Otherwise the result says "not localized" with a
-//     reason, and the caller tries again after more motion.
+//     ratio of 0.93) -- for an ORB seed, keyframes other than the seed and its nms_keyframes
+//     neighbours (whose matches made the pose: not independent evidence); when no such keyframe is
+//     near, "not verified"; and its score per source point beats that of the best rival more than
+//     distinct_m or distinct_rad away that the priors allow, at the fine and at the coarse
+//     resolution, by min_score_margin (relative). Rivals: the other refined hypotheses, and always
+//     NDT from the best turned 180 deg about the vertical through the local map's centroid, and
+//     from the first RANSAC pose distinct from the fit among the next rival_scan ranked candidates
+//     with a vote, away (> verify_radius_m) from the fitted camera (a repeated place: the second
+//     vote cluster; limitation: copies closer than verify_radius_m are not searched), else from the
+//     best-voted candidate keyframe's pose away from the fit. When no rival gave a pose the priors allow, the
+//     margin is unknown: rejected (kAmbiguous, fail closed) unless both a position and a yaw prior pin the
+//     pose. With priors, fits that contradict them are not chosen while one that agrees exists. Otherwise the
+//     result says "not localized" with a reason, and the caller tries again after more motion. Limitation:
+//     prior places whose descriptors are bit-identical copies give all their votes to one copy
+//     (nearest-neighbour ties), so the second cluster is found only through the hypotheses and the keyframe
+//     seed.
 //
 // Scores: NDT's score of eq. 6.9 summed over the (same, subsampled) source cloud, divided by its
 // point count, so hypotheses are compared on the same cloud at the same resolution.
@@ -102,6 +114,9 @@ struct RelocalizerConfig {
   int min_votes = 15;          // fewer: the candidate does not go to RANSAC
   int top_k = 8;               // candidates that go on to RANSAC (and fallback seeds)
   int nms_keyframes = 1;       // ... no two within this many keyframe indices of each other
+  // e. the second vote cluster: at most this many further ranked candidates (any vote, more than
+  // verify_radius_m from the fitted camera) are matched and RANSAC'd looking for a rival pose.
+  int rival_scan = 8;
   // c. geometry
   estimation::PoseRansacConfig ransac = [] {
     estimation::PoseRansacConfig c;
@@ -191,6 +206,7 @@ struct RelocalizationCounters {
   int ndt_runs = 0;           // coarse and fine
   int ndt_converged = 0;      // coarse
   int64_t target_points = 0;  // largest prior target used
+  int rival_seeds = 0;        // step e: NDT runs from rival seeds (180 deg turn, second cluster, keyframe)
 };
 
 struct RelocalizationResult {
@@ -202,7 +218,12 @@ struct RelocalizationResult {
   // The fine scores (per source point) of the keep_best hypotheses, best first; unused are 0.
   std::array<double, 3> best_scores{0, 0, 0};
   double best_inlier_ratio = 0;
-  double score_margin = 0;  // relative margin over the best distinct competitor (1: none)
+  // Relative margin of the best fine score over the best distinct rival's the priors allow (fine and
+  // coarse, the smaller). 1 when rivals were evaluated and none ended distinct from the best.
+  double score_margin = 0;
+  int rivals_evaluated = 0;       // rival NDT results the priors allow (distinct or back on the best)
+  bool margin_known = false;      // rivals_evaluated > 0; when false the margin is unknown (see step e)
+  int verify_keyframes_used = 0;  // prior keyframes the ORB verification checked (seed excluded)
   bool best_from_orb = false;
   int best_orb_inliers = 0;
   int verified_matches = 0;  // ORB verification of the best fit (step e)
