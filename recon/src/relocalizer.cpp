@@ -131,6 +131,37 @@ struct Relocalizer::Impl {
   }
 
   // Gathers the prior points about `center` into `target` unless the last gather covers it.
+  // The current keyframe's ORB matches with prior keyframe kf (its keypoints with depth, moved to the
+  // prior frame), then RANSAC: T_cam_world of the result is the current camera's pose in the prior
+  // frame (the solver's "world"). Counts RANSAC runs and accepted hypotheses; ok = false when the
+  // matches or the inliers are fewer than min_orb_inliers.
+  estimation::PoseRansacResult ransac_against(const PriorKeyframe& kf,
+                                              const estimation::FrameFeatures& current,
+                                              RelocalizationCounters* counters) {
+    const int n = current_index.match(kf.features, matches.data(), max_features);
+    int nc = 0;
+    for (int i = 0; i < n; ++i) {
+      const estimation::Feature& fp = kf.features.feature(matches[static_cast<size_t>(i)].query);
+      const estimation::Feature& fc = current.feature(matches[static_cast<size_t>(i)].train);
+      if (!(fp.depth_m > 0)) continue;
+      estimation::Correspondence& corr = correspondences[static_cast<size_t>(nc++)];
+      corr.p_world = kf.T_prior_cam * fp.p_cam_m;
+      corr.uv_px = {fc.u_px, fc.v_px};
+      corr.depth_m = fc.depth_m;
+      corr.octave = fc.octave;
+    }
+    estimation::PoseRansacResult rr;
+    if (nc < config.min_orb_inliers) return rr;
+    ++counters->ransac_runs;
+    rr = ransac.solve(correspondences.data(), nc, K, config.ransac, inlier_mask.data());
+    if (!rr.ok || rr.inliers < config.min_orb_inliers || !finite_pose(rr.T_cam_world)) {
+      rr.ok = false;
+      return rr;
+    }
+    ++counters->ransac_hypotheses;
+    return rr;
+  }
+
   core::Status gather_target(PriorMap* prior, const Eigen::Vector3d& center, PointsView* view,
                              RelocalizationCounters* counters);
   // Subsamples the local map into `source` (stride), with its centroid and extent.
@@ -480,24 +511,8 @@ RelocalizationResult Relocalizer::relocalize(const RelocalizationQuery& q, Prior
   for (int c : m.selected) {
     if (m.votes[static_cast<size_t>(c)] < cfg.min_votes) continue;
     const PriorKeyframe& kf = kfs[static_cast<size_t>(c)];
-    const int n = m.current_index.match(kf.features, m.matches.data(), m.max_features);
-    int nc = 0;
-    for (int i = 0; i < n; ++i) {
-      const estimation::Feature& fp = kf.features.feature(m.matches[static_cast<size_t>(i)].query);
-      const estimation::Feature& fc = q.features->feature(m.matches[static_cast<size_t>(i)].train);
-      if (!(fp.depth_m > 0)) continue;
-      estimation::Correspondence& corr = m.correspondences[static_cast<size_t>(nc++)];
-      corr.p_world = kf.T_prior_cam * fp.p_cam_m;  // the solver's "world" is the prior frame
-      corr.uv_px = {fc.u_px, fc.v_px};
-      corr.depth_m = fc.depth_m;
-      corr.octave = fc.octave;
-    }
-    if (nc < cfg.min_orb_inliers) continue;
-    ++res.counters.ransac_runs;
-    const estimation::PoseRansacResult rr =
-        m.ransac.solve(m.correspondences.data(), nc, m.K, cfg.ransac, m.inlier_mask.data());
-    if (!rr.ok || rr.inliers < cfg.min_orb_inliers || !finite_pose(rr.T_cam_world)) continue;
-    ++res.counters.ransac_hypotheses;
+    const estimation::PoseRansacResult rr = m.ransac_against(kf, *q.features, &res.counters);
+    if (!rr.ok) continue;
     Hypothesis h;
     h.T_seed = rr.T_cam_world.inverse() * q.T_world_cam.inverse();  // T_prior_cam * T_cam_world
     h.from_orb = true;
@@ -759,25 +774,9 @@ RelocalizationResult Relocalizer::relocalize(const RelocalizationQuery& q, Prior
     if (near_seed(c) || tried(c)) continue;
     const PriorKeyframe& kf = kfs[static_cast<size_t>(c)];
     if ((kf.T_prior_cam.translation() - p_prior_fit).norm() <= cfg.verify_radius_m) continue;
-    const int n = m.current_index.match(kf.features, m.matches.data(), m.max_features);
-    int nc = 0;
-    for (int i = 0; i < n; ++i) {
-      const estimation::Feature& fp = kf.features.feature(m.matches[static_cast<size_t>(i)].query);
-      const estimation::Feature& fc = q.features->feature(m.matches[static_cast<size_t>(i)].train);
-      if (!(fp.depth_m > 0)) continue;
-      estimation::Correspondence& corr = m.correspondences[static_cast<size_t>(nc++)];
-      corr.p_world = kf.T_prior_cam * fp.p_cam_m;
-      corr.uv_px = {fc.u_px, fc.v_px};
-      corr.depth_m = fc.depth_m;
-      corr.octave = fc.octave;
-    }
+    const estimation::PoseRansacResult rr = m.ransac_against(kf, *q.features, &res.counters);
     ++scanned;
-    if (nc < cfg.min_orb_inliers) continue;
-    ++res.counters.ransac_runs;
-    const estimation::PoseRansacResult rr =
-        m.ransac.solve(m.correspondences.data(), nc, m.K, cfg.ransac, m.inlier_mask.data());
-    if (!rr.ok || rr.inliers < cfg.min_orb_inliers || !finite_pose(rr.T_cam_world)) continue;
-    ++res.counters.ransac_hypotheses;
+    if (!rr.ok) continue;
     const Eigen::Isometry3d T_seed = rr.T_cam_world.inverse() * q.T_world_cam.inverse();
     if (!distinct(T_seed) || !gates_ok(T_seed)) continue;
     const core::Status st = evaluate_rival(T_seed);

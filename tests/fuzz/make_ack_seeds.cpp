@@ -7,24 +7,15 @@
 
 #include <cstdio>
 #include <cstring>
-#include <filesystem>
 #include <string>
 #include <vector>
 
+#include "corpus_dir.hpp"
 #include "hwr/mapio/chunk_wire.hpp"
 
 int main(int argc, char** argv) {
-  if (argc != 2) {
-    std::fprintf(stderr, "usage: %s <corpus folder>\n", argv[0]);
-    return 2;
-  }
-  const std::string dir = argv[1];
-  std::error_code ec;
-  std::filesystem::create_directories(dir, ec);
-  if (ec) {
-    std::fprintf(stderr, "cannot create %s: %s\n", dir.c_str(), ec.message().c_str());
-    return 1;
-  }
+  std::string dir;
+  if (const int rc = hwr::fuzz::corpus_dir_from_args(argc, argv, &dir); rc != 0) return rc;
   struct Seed {
     int64_t cumulative;
     std::vector<int64_t> selective;

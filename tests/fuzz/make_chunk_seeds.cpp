@@ -5,25 +5,16 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
-#include <filesystem>
 #include <random>
 #include <string>
 #include <vector>
 
+#include "corpus_dir.hpp"
 #include "hwr/mapio/chunk_codec.hpp"
 
 int main(int argc, char** argv) {
-  if (argc != 2) {
-    std::fprintf(stderr, "usage: %s <corpus folder>\n", argv[0]);
-    return 2;
-  }
-  const std::string dir = argv[1];
-  std::error_code ec;
-  std::filesystem::create_directories(dir, ec);
-  if (ec) {
-    std::fprintf(stderr, "cannot create %s: %s\n", dir.c_str(), ec.message().c_str());
-    return 1;
-  }
+  std::string dir;
+  if (const int rc = hwr::fuzz::corpus_dir_from_args(argc, argv, &dir); rc != 0) return rc;
   std::mt19937 rng(7);
   std::uniform_real_distribution<float> u(-2.f, 2.f);
   int written = 0;
