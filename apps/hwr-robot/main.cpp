@@ -7,6 +7,7 @@
 // simulated clock: deterministic, faster than real time; --realtime paces it at sensor rate.
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cinttypes>
 #include <cstddef>
@@ -38,6 +39,8 @@
 #include "hwr/recon/local_mapper_config.hpp"
 #include "hwr/recon/map_store.hpp"
 #include "hwr/recon/plate_fit.hpp"
+#include "hwr/recon/prior_map.hpp"
+#include "hwr/recon/relocalization_worker.hpp"
 #include "hwr/recon/segment_writer.hpp"
 #if HWR_WITH_SIM
 #include "hwr/sim/scenario.hpp"
@@ -70,6 +73,7 @@ struct Args {
   bool quiet = false;
   std::string traj_out, timing_out, gt_out, faults, config, ba_export, map_out, cloud_out;
   std::string link, robot_id = "robot1";
+  std::string prior_map;
   double link_wait_s = 30.0;
   bool use_imu = true, local_ba = true, full_ba = true;
 };
@@ -81,6 +85,7 @@ void usage() {
       "                 [--traj-out FILE] [--timing-out FILE] [--gt-out FILE] [--faults SPEC]\n"
       "                 [--no-imu] [--no-local-ba] [--no-full-ba] [--ba-export FILE]\n"
       "                 [--map-out DIR] [--cloud-out FILE] [--link URL [--robot-id ID] [--link-wait S]]\n"
+      "                 [--prior-map DIR]\n"
       "  KIND:WHAT  sim:NAME|FILE.yaml (the simulator renders live), sim:DIR (a run written by hwr-sim),\n"
       "             tum:DIR (TUM RGB-D folder), euroc:DIR (EuRoC folder or mav0)\n"
       "  --config FILE      settings (YAML, sections estimation: and map:; config/estimation.yaml and\n"
@@ -98,7 +103,10 @@ void usage() {
       "  --link URL         stream the map to the ground station (hwr-ground) over LCM, e.g.\n"
       "                     udpm://239.255.76.67:7667?ttl=0&recv_buf_size=8388608 (docs/mapio.md)\n"
       "  --robot-id ID      this robot's name on the link ([A-Za-z0-9_-], default robot1)\n"
-      "  --link-wait S      at the end, wait up to S seconds for the ground station's acks (default 30)\n");
+      "  --link-wait S      at the end, wait up to S seconds for the ground station's acks (default 30)\n"
+      "  --prior-map DIR    an earlier run's map store (--map-out of that run): relocalize against it while\n"
+      "                     moving, then express poses, segments and the streamed map in its frame\n"
+      "                     (docs/relocalization.md)\n");
 }
 
 // Replay paced at sensor rate: the timeline is the source's time, advancing with CLOCK_MONOTONIC.
@@ -120,7 +128,15 @@ struct Robot {
   hwr::estimation::PoseEstimator* estimator = nullptr;
   hwr::recon::LocalMapper* mapper = nullptr;
   hwr::recon::SegmentSink* segments = nullptr;
-  hwr::mapio::MapStreamer* streamer = nullptr;  // --link: map chunks and telemetry
+  hwr::mapio::MapStreamer* streamer = nullptr;        // --link: map chunks and telemetry
+  hwr::recon::RelocalizationWorker* reloc = nullptr;  // --prior-map
+  // The frame every output is expressed in: the run's world until relocalized, then the prior's
+  // (T_out_world = T_prior_world).
+  Eigen::Isometry3d T_out_world = Eigen::Isometry3d::Identity();
+  bool in_prior_frame = false;
+  double moved_m = 0;  // path of the newest keyframes so far
+  int last_keyframe = -1;
+  Eigen::Vector3d last_keyframe_p = Eigen::Vector3d::Zero();
   hwr::hal::StreamMonitor imu{200.0};
   hwr::hal::StreamMonitor camera{30.0};
   uint64_t mag = 0, gnss = 0, gnss_3d = 0;
@@ -164,12 +180,34 @@ void camera_task(void* ctx, int64_t) {
     r->camera.check(*f);
     const hwr::estimation::TrackResult& tr = r->estimator->process_frame(*f);
     if (r->streamer != nullptr) {
-      r->streamer->post_pose(f->t_ns, tr.T_world_cam,
+      r->streamer->post_pose(f->t_ns, r->T_out_world * tr.T_world_cam,
                              tr.state == hwr::estimation::TrackState::kTracking ||
                                  tr.state == hwr::estimation::TrackState::kRecovered);
     }
     r->streams->frame_pool.release(f);
   }
+}
+
+// --prior-map: offer the newest keyframe and the local map around it to the relocalization worker
+// (it takes one when idle and the robot has moved enough since its last attempt), and switch the
+// outputs to the prior's frame once it has localized. Never waits for the worker.
+void relocalization_step(Robot* r) {
+  if (r->reloc->localized() && !r->in_prior_frame) {
+    r->T_out_world = r->reloc->T_prior_world();
+    r->in_prior_frame = true;
+  }
+  const hwr::estimation::KeyframeStore& kfs = r->estimator->tracker().keyframes();
+  const int newest = kfs.newest_id();
+  if (newest < 0 || newest == r->last_keyframe) return;
+  const hwr::estimation::Keyframe* kf = kfs.get(newest);
+  if (kf == nullptr) return;
+  const Eigen::Vector3d p = kf->T_world_cam.translation();
+  if (r->last_keyframe >= 0) r->moved_m += (p - r->last_keyframe_p).norm();
+  r->last_keyframe = newest;
+  r->last_keyframe_p = p;
+  if (r->in_prior_frame) return;
+  r->reloc->offer(kf->features, kf->T_world_cam, r->mapper->active_map(), r->mapper->active_T_world_segment(),
+                  r->moved_m, hwr::recon::RelocalizationPriors{});
 }
 
 void mapping_task(void* ctx, int64_t) {
@@ -180,6 +218,7 @@ void mapping_task(void* ctx, int64_t) {
   }
   // Keyframes settled by the sliding window go into the active local map (docs/reconstruction.md).
   r->mapper->update(r->estimator->tracker().keyframes(), r->segments);
+  if (r->reloc != nullptr) relocalization_step(r);
 }
 
 // HWR_STATUS for the ground station: per-task scheduler counters and the stream/estimation counters.
@@ -244,15 +283,58 @@ void telemetry_task(void* ctx, int64_t now_ns) {
 
 // Where closed segments go: the map store's writer thread (--map-out), the world-frame cloud
 // (--cloud-out), and a one-line summary per junction for the end-of-run report.
+// With --prior-map, segment ids continue after the prior's (id_offset), so the two runs' segments
+// can live in one store, and segments are expressed in the prior's frame: those that close before
+// the robot has relocalized are held (at most max_held; a run that has not relocalized by then
+// gives up holding and writes in its own frame, said at the end) and released in the prior frame
+// once it has.
 class RobotSegmentSink final : public hwr::recon::SegmentSink {
  public:
   hwr::recon::StoreSegmentWriter* writer = nullptr;
   bool keep_world_cloud = false;
-  std::vector<hwr::recon::CloudPoint> cloud_world;
+  std::vector<hwr::recon::CloudPoint> cloud_world;  // in the output frame
   std::vector<std::string> junction_lines;
   uint64_t segments = 0, points = 0;
+  const Robot* robot = nullptr;  // T_out_world, in_prior_frame
+  bool hold_until_localized = false;
+  size_t max_held = 8;
+  uint32_t id_offset = 0;
+  bool gave_up_holding = false;
+  uint64_t written_in_run_frame = 0;  // segments not in the prior frame (not relocalized in time)
 
   void take(hwr::recon::SegmentRecord&& seg) override {
+    seg.segment_id += id_offset;
+    if (hold_until_localized && !robot->in_prior_frame && !gave_up_holding) {
+      held_.push_back(std::move(seg));
+      if (held_.size() > max_held) {
+        gave_up_holding = true;
+        HWR_LOG_WARN("robot",
+                     "--prior-map: not relocalized after %zu segments; they are written in this run's frame",
+                     held_.size());
+        release_held();
+      }
+      return;
+    }
+    release_held();
+    emit(std::move(seg));
+  }
+  // Held segments go out in the output frame of now (the prior's, once relocalized).
+  void release_held() {
+    for (auto& h : held_) emit(std::move(h));
+    held_.clear();
+  }
+
+ private:
+  std::vector<hwr::recon::SegmentRecord> held_;
+
+  void emit(hwr::recon::SegmentRecord&& seg) {
+    if (robot != nullptr && robot->in_prior_frame) {
+      const Eigen::Isometry3d& T = robot->T_out_world;
+      seg.T_world_segment = T * seg.T_world_segment;
+      for (auto& kf : seg.keyframes) kf.T_world_cam = T * kf.T_world_cam;
+    } else if (hold_until_localized) {
+      ++written_in_run_frame;
+    }
     ++segments;
     points += seg.points_segment.size();
     if (seg.segment_id > 0) {
@@ -283,7 +365,8 @@ class RobotSegmentSink final : public hwr::recon::SegmentSink {
   }
 };
 
-// The active local map's voxels, streamed as the map fills (recon::MapStreamSink -> mapio).
+// The active local map's voxels, streamed as the map fills (in the output frame: the prior's
+// once relocalized; ids after the prior's with --prior-map) (recon::MapStreamSink -> mapio).
 // CloudPoint and ChunkPoint share one 16-byte layout. In replay (simulated clock, faster than real
 // time) the mapping task waits for a free batch slot rather than drop map data to its own speed; but
 // once a wait times out (no ground station acknowledging) it stops waiting until acks come again, so
@@ -294,13 +377,15 @@ static_assert(sizeof(hwr::recon::CloudPoint) == sizeof(hwr::mapio::ChunkPoint) &
               "CloudPoint and ChunkPoint must share their layout");
 class LinkStreamSink final : public hwr::recon::MapStreamSink {
  public:
-  LinkStreamSink(hwr::mapio::MapStreamer* streamer, double wait_s) : streamer_(streamer), wait_s_(wait_s) {}
+  LinkStreamSink(hwr::mapio::MapStreamer* streamer, double wait_s, const Robot* robot, uint32_t id_offset)
+      : streamer_(streamer), wait_s_(wait_s), robot_(robot), id_offset_(id_offset) {}
   void stream(uint32_t segment_id, const Eigen::Isometry3d& T_world_segment,
               const hwr::recon::CloudPoint* points_segment, const uint32_t* voxel_ids, int n,
               bool segment_complete) override {
     const int64_t last_ack = streamer_->stats().last_ack_ns;
     if (stalled_ && last_ack != stalled_at_ack_) stalled_ = false;  // the ground station answers again
-    const bool ok = streamer_->submit(static_cast<int32_t>(segment_id), 0, T_world_segment,
+    const bool ok = streamer_->submit(static_cast<int32_t>(segment_id + id_offset_), 0,
+                                      robot_->T_out_world * T_world_segment,
                                       reinterpret_cast<const hwr::mapio::ChunkPoint*>(points_segment),
                                       voxel_ids, n, segment_complete, stalled_ ? 0.0 : wait_s_);
     if (!ok && !stalled_ && wait_s_ > 0) {
@@ -320,6 +405,8 @@ class LinkStreamSink final : public hwr::recon::MapStreamSink {
  private:
   hwr::mapio::MapStreamer* streamer_;
   double wait_s_;
+  const Robot* robot_;
+  uint32_t id_offset_;
   bool stalled_ = false, warned_ = false;
   int64_t stalled_at_ack_ = 0;
 };
@@ -383,6 +470,31 @@ hwr::core::Status write_timings(const std::string& path,
   return hwr::core::write_file_atomic(path, csv);
 }
 
+// DIR/relocalization.yaml of a --prior-map run: where this run's frame sits in the prior's.
+hwr::core::Status write_relocalization_yaml(const std::string& map_dir, const std::string& prior_dir,
+                                            const std::string& prior_run_id, uint32_t first_segment_id,
+                                            const hwr::recon::RelocalizationWorkerStatus& rs) {
+  std::string y;
+  char line[512];
+  std::snprintf(line, sizeof(line),
+                "# hwr-robot --prior-map: this run's world frame in the prior run's (T_prior_world maps this "
+                "run's world coordinates into the prior's)\nprior_map: \"%s\"\nprior_run_id: \"%s\"\n"
+                "first_segment_id: %u\nlocalized: %s\nattempts: %d\nrelocalization_s: %.4f\n",
+                prior_dir.c_str(), prior_run_id.c_str(), first_segment_id, rs.localized ? "true" : "false",
+                rs.attempts, rs.wall_s_total);
+  y += line;
+  if (rs.localized) {
+    const Eigen::Quaterniond q(rs.T_prior_world.linear());
+    const Eigen::Vector3d t = rs.T_prior_world.translation();
+    std::snprintf(line, sizeof(line),
+                  "moved_at_localization_m: %.4f\nT_prior_world:\n  t_m: [%.6f, %.6f, %.6f]\n"
+                  "  q_xyzw: [%.9f, %.9f, %.9f, %.9f]\n",
+                  rs.moved_at_localization_m, t.x(), t.y(), t.z(), q.x(), q.y(), q.z(), q.w());
+    y += line;
+  }
+  return hwr::core::write_file_atomic(map_dir + "/relocalization.yaml", y);
+}
+
 int run(const Args& args) {
   auto opened = open_source(args.source);
   if (!opened.ok()) {
@@ -444,8 +556,43 @@ int run(const Args& args) {
     std::fprintf(stderr, "hwr-robot: map: %s\n", mapper.status().message().c_str());
     return 2;
   }
+  Robot robot;
+  // --prior-map: the earlier run's map, read lazily (docs/relocalization.md); the worker thread
+  // relocalizes against it while the robot moves.
+  std::unique_ptr<hwr::recon::RelocalizationWorker> reloc;
+  uint32_t segment_id_offset = 0;
+  std::string prior_run_id;
+  if (!args.prior_map.empty()) {
+    auto prior = hwr::recon::PriorMap::open(args.prior_map);
+    if (!prior.ok()) {
+      std::fprintf(stderr, "hwr-robot: --prior-map: %s\n", prior.status().message().c_str());
+      return 1;
+    }
+    if (prior->keyframes().empty()) {
+      std::fprintf(stderr, "hwr-robot: --prior-map: %s holds no keyframes to relocalize against\n",
+                   args.prior_map.c_str());
+      return 1;
+    }
+    for (const auto& seg : prior->segments())
+      segment_id_offset = std::max(segment_id_offset, seg.segment_id + 1);
+    prior_run_id = prior->metadata().run_id;
+    std::fprintf(stderr, "hwr-robot: prior map %s (run %s): %zu segments, %zu keyframes\n",
+                 args.prior_map.c_str(), prior_run_id.c_str(), prior->segments().size(),
+                 prior->keyframes().size());
+    auto w = hwr::recon::RelocalizationWorker::start(std::move(prior.value()),
+                                                     hwr::recon::RelocalizationWorkerConfig{},
+                                                     info.intrinsics, est_cfg.tracker.orb.max_features);
+    if (!w.ok()) {
+      std::fprintf(stderr, "hwr-robot: --prior-map: %s\n", w.status().message().c_str());
+      return 2;
+    }
+    reloc = std::move(w.value());
+  }
   RobotSegmentSink segments;
   segments.keep_world_cloud = !args.cloud_out.empty();
+  segments.robot = &robot;
+  segments.hold_until_localized = reloc != nullptr;
+  segments.id_offset = segment_id_offset;
   std::unique_ptr<hwr::recon::StoreSegmentWriter> store_writer;
   if (!args.map_out.empty()) {
     hwr::recon::StoreMetadata meta;
@@ -485,7 +632,8 @@ int run(const Args& args) {
       return 1;
     }
     streamer = std::move(s.value());
-    link_sink = std::make_unique<LinkStreamSink>(streamer.get(), args.realtime ? 0.0 : 60.0);
+    link_sink = std::make_unique<LinkStreamSink>(streamer.get(), args.realtime ? 0.0 : 60.0, &robot,
+                                                 segment_id_offset);
     mapper->set_stream_sink(link_sink.get());
     std::fprintf(stderr, "hwr-robot: streaming the map as %s run %lld over %s\n", args.robot_id.c_str(),
                  static_cast<long long>(run_id), args.link.c_str());
@@ -499,8 +647,8 @@ int run(const Args& args) {
 
   hwr::core::Scheduler sched(kTasks, kTaskCount, timeline);
   sched.set_execution_clock(exec_clock);  // budgets are checked against real work
-  Robot robot;
   robot.streams = &streams;
+  robot.reloc = reloc.get();
   robot.source = source->get();
   robot.scheduler = &sched;
   robot.estimator = estimator.get();
@@ -530,6 +678,11 @@ int run(const Args& args) {
   camera_task(&robot, end);
   estimator->advance_imu(end + kImuHoldbackNs);
   mapping_task(&robot, end);
+  if (reloc) {
+    // A replay runs faster than the worker: the attempt under way still counts.
+    reloc->wait_idle();
+    relocalization_step(&robot);
+  }
   const double wall_s = hwr::core::ns_to_s(exec_clock.now_ns() - wall0);
   if (!st.ok()) robot.error = st;
   if (!args.quiet) std::fputc('\n', stderr);
@@ -558,6 +711,7 @@ int run(const Args& args) {
   const double full_s = hwr::core::ns_to_s(exec_clock.now_ns() - full0);
   // The keyframes not yet fused (the lag) go in with their final poses; the last segment closes.
   mapper->finish(estimator->tracker().keyframes(), &segments);
+  segments.release_held();
   if (store_writer) store_writer->drain();
 
   char table[4096];
@@ -627,6 +781,37 @@ int run(const Args& args) {
                   w.written, w.failed, w.stalls, args.map_out.c_str());
       if (w.failed > 0) rc = 1;
     }
+    if (reloc) {
+      const hwr::recon::RelocalizationWorkerStatus rs = reloc->status();
+      if (rs.localized) {
+        const Eigen::Isometry3d& T = rs.T_prior_world;
+        const double yaw_deg = std::atan2(T.linear()(1, 0), T.linear()(0, 0)) * 180.0 / M_PI;
+        std::printf(
+            "relocalization: localized in the prior map %s after %.2f m of motion, attempt %d, %.2f s of "
+            "relocalization in all; T_prior_world: t = (%.3f, %.3f, %.3f) m, yaw %.2f deg; "
+            "poses, segments and the streamed map are in the prior's frame\n",
+            args.prior_map.c_str(), rs.moved_at_localization_m, rs.attempts, rs.wall_s_total,
+            T.translation().x(), T.translation().y(), T.translation().z(), yaw_deg);
+      } else {
+        std::printf(
+            "relocalization: NOT localized in the prior map %s (%d attempts, %.2f s, %.2f m moved); "
+            "last: %s; outputs are in this run's frame\n",
+            args.prior_map.c_str(), rs.attempts, rs.wall_s_total, robot.moved_m,
+            rs.last_message.empty() ? "no attempt" : rs.last_message.c_str());
+      }
+      if (segments.written_in_run_frame > 0) {
+        std::printf("relocalization: %" PRIu64 " segments were written in this run's frame\n",
+                    segments.written_in_run_frame);
+      }
+      if (!args.map_out.empty()) {
+        const hwr::core::Status ws =
+            write_relocalization_yaml(args.map_out, args.prior_map, prior_run_id, segment_id_offset, rs);
+        if (!ws.ok()) {
+          std::fprintf(stderr, "hwr-robot: --map-out: %s\n", ws.message().c_str());
+          rc = 1;
+        }
+      }
+    }
     if (streamer) {
       // The robot has stopped: the rest of the map goes out; wait for the ground station.
       const auto wait0 = std::chrono::steady_clock::now();
@@ -677,7 +862,9 @@ int run(const Args& args) {
     }
   }
   if (!args.traj_out.empty()) {
-    const auto traj = estimator->trajectory();
+    auto traj = estimator->trajectory();
+    // In the output frame (the prior's once relocalized: one rigid transform for the whole run).
+    for (auto& sp : traj) sp.T_world_body = robot.T_out_world * sp.T_world_body;
     const hwr::core::Status ws = hwr::core::write_tum_trajectory(args.traj_out, traj);
     if (!ws.ok()) {
       std::fprintf(stderr, "hwr-robot: --traj-out: %s\n", ws.message().c_str());
@@ -753,6 +940,8 @@ int main(int argc, char** argv) {
       args.map_out = value("--map-out");
     } else if (a == "--cloud-out") {
       args.cloud_out = value("--cloud-out");
+    } else if (a == "--prior-map") {
+      args.prior_map = value("--prior-map");
     } else if (a == "--link") {
       args.link = value("--link");
     } else if (a == "--robot-id") {

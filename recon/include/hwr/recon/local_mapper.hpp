@@ -89,6 +89,8 @@ class LocalMapper {
   const LocalMapperCounters& counters() const { return counters_; }
   const VoxelMap& active_map() const { return map_; }
   uint32_t active_segment_id() const { return segment_.segment_id; }
+  // The active segment's frame in the world (its first keyframe's camera pose when it started).
+  const Eigen::Isometry3d& active_T_world_segment() const { return segment_.T_world_segment; }
   double active_travel_m() const { return segment_.travelled_m; }
   const LocalMapperConfig& config() const { return config_; }
   // Optional; not owned. Set before the first update().

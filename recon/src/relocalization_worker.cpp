@@ -1,0 +1,176 @@
+#include "hwr/recon/relocalization_worker.hpp"
+
+#include <chrono>
+#include <cmath>
+#include <utility>
+
+#include "hwr/core/log.hpp"
+
+namespace hwr::recon {
+
+core::Expected<std::unique_ptr<RelocalizationWorker>> RelocalizationWorker::start(
+    PriorMap prior, const RelocalizationWorkerConfig& config, const hal::PinholeIntrinsics& K,
+    int max_features) {
+  if (config.max_local_points < 1)
+    return core::InvalidArgument("relocalization: max_local_points must be >= 1");
+  if (!(config.local_radius_m > 0) || !std::isfinite(config.local_radius_m)) {
+    return core::InvalidArgument("relocalization: local_radius_m must be positive");
+  }
+  if (!(config.first_attempt_m >= 0) || !(config.retry_every_m > 0) || !std::isfinite(config.retry_every_m)) {
+    return core::InvalidArgument("relocalization: first_attempt_m must be >= 0 and retry_every_m positive");
+  }
+  if (config.max_attempts_logged < 0) return core::InvalidArgument("relocalization: max_attempts_logged < 0");
+  auto relocalizer = Relocalizer::create(config.relocalizer, K, max_features);
+  if (!relocalizer.ok()) return relocalizer.status();
+  std::unique_ptr<RelocalizationWorker> w(
+      new RelocalizationWorker(std::move(prior), std::move(relocalizer.value()), config, K, max_features));
+  w->thread_ = std::thread([p = w.get()] { p->run(); });
+  return w;
+}
+
+RelocalizationWorker::RelocalizationWorker(PriorMap prior, Relocalizer relocalizer,
+                                           const RelocalizationWorkerConfig& config,
+                                           const hal::PinholeIntrinsics& K, int max_features)
+    : config_(config),
+      prior_(std::move(prior)),
+      relocalizer_(std::move(relocalizer)),
+      max_features_(max_features),
+      features_(max_features, K.width, K.height),
+      local_world_(static_cast<size_t>(config.max_local_points)),
+      next_attempt_m_(config.first_attempt_m) {
+  status_.log.reserve(static_cast<size_t>(config.max_attempts_logged));
+  busy_.store(true, std::memory_order_relaxed);  // until the index is built (run())
+}
+
+RelocalizationWorker::~RelocalizationWorker() { stop(); }
+
+void RelocalizationWorker::stop() {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    stop_ = true;
+  }
+  wake_.notify_all();
+  if (thread_.joinable()) thread_.join();
+}
+
+void RelocalizationWorker::wait_idle() {
+  std::unique_lock<std::mutex> lock(mutex_);
+  idle_.wait(lock, [&] { return stop_ || !busy_.load(std::memory_order_acquire); });
+}
+
+RelocalizationWorkerStatus RelocalizationWorker::status() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return status_;
+}
+
+bool RelocalizationWorker::offer(const estimation::FrameFeatures& features,
+                                 const Eigen::Isometry3d& T_world_cam, const VoxelMap& local_map,
+                                 const Eigen::Isometry3d& T_world_segment, double moved_m,
+                                 const RelocalizationPriors& priors) {
+  if (localized() || busy() || moved_m < next_attempt_m_) return false;
+  if (features.size() > max_features_ || features.capacity() != features_.capacity() ||
+      features.scale_per_octave.size() != features_.scale_per_octave.size()) {
+    ++offers_refused_;
+    return false;
+  }
+  // The worker is idle (busy_ false, acquire): it reads nothing until busy_ is set again below.
+  features_ = features;  // same capacity: no allocation (frame_features.hpp)
+  T_world_cam_ = T_world_cam;
+  moved_m_ = moved_m;
+  priors_ = priors;
+  // Voxels near the camera, in the current world frame; every k-th in creation order when there are
+  // more than the copy holds. The count near the camera is not known before the pass, so the stride
+  // comes from the whole map: a conservative (never overfull) choice.
+  const Eigen::Isometry3f T_world_segment_f = T_world_segment.cast<float>();
+  const Eigen::Vector3f c_world = T_world_cam.translation().cast<float>();
+  const float r2 = static_cast<float>(config_.local_radius_m * config_.local_radius_m);
+  const int total = local_map.size();
+  const int cap = static_cast<int>(local_world_.size());
+  const int stride = total > cap ? (total + cap - 1) / cap : 1;
+  int n = 0;
+  for (int i = 0; i < total && n < cap; i += stride) {
+    const Voxel& v = local_map.at_slot(local_map.created(i));
+    const Eigen::Vector3f p = T_world_segment_f * Eigen::Vector3f(v.x_m, v.y_m, v.z_m);
+    if ((p - c_world).squaredNorm() > r2) continue;
+    CloudPoint& q = local_world_[static_cast<size_t>(n++)];
+    q.x_m = p.x();
+    q.y_m = p.y();
+    q.z_m = p.z();
+    q.r = static_cast<uint8_t>(v.r);
+    q.g = static_cast<uint8_t>(v.g);
+    q.b = static_cast<uint8_t>(v.b);
+    q.flags = 0;
+  }
+  local_n_ = n;
+  next_attempt_m_ = moved_m + config_.retry_every_m;
+  ++offers_taken_;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);  // no lost wake-up; held for a moment only
+    busy_.store(true, std::memory_order_release);
+  }
+  wake_.notify_one();
+  return true;
+}
+
+void RelocalizationWorker::run() {
+  // The appearance index over every prior descriptor (~1 s for the lab's map): built here, so the
+  // first attempt's time is the relocalization's and the robot starts without waiting for it.
+  relocalizer_.prepare(prior_);
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    busy_.store(false, std::memory_order_release);
+  }
+  idle_.notify_all();
+  for (;;) {
+    {
+      std::unique_lock<std::mutex> lock(mutex_);
+      wake_.wait(lock, [&] { return stop_ || busy_.load(std::memory_order_acquire); });
+      if (stop_) {
+        busy_.store(false, std::memory_order_release);
+        idle_.notify_all();
+        return;
+      }
+    }
+    RelocalizationQuery q;
+    q.features = &features_;
+    q.T_world_cam = T_world_cam_;
+    q.local_map_world = {&local_world_[0].x_m, local_n_,
+                         static_cast<int>(sizeof(CloudPoint) / sizeof(float))};
+    q.moved_m = moved_m_;
+    q.position = priors_.position;
+    q.yaw_valid = priors_.yaw_valid;
+    q.yaw_prior_rad = priors_.yaw_prior_rad;
+    q.yaw_sigma_rad = priors_.yaw_sigma_rad;
+    const RelocalizationResult r = relocalizer_.relocalize(q, &prior_);
+    int attempt = 0;
+    if (r.localized) T_prior_world_ = r.T_prior_world;
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      attempt = ++status_.attempts;
+      status_.wall_s_total += r.wall_s;
+      status_.last_message = r.message;
+      if (status_.log.size() < static_cast<size_t>(config_.max_attempts_logged)) {
+        RelocalizationAttempt a;
+        a.moved_m = moved_m_;
+        a.wall_s = r.wall_s;
+        a.reason = r.reason;
+        a.position_prior = q.position.valid;
+        a.yaw_prior = q.yaw_valid;
+        a.local_points = local_n_;
+        status_.log.push_back(a);
+      }
+      if (r.localized) {
+        status_.localized = true;
+        status_.T_prior_world = r.T_prior_world;
+        status_.moved_at_localization_m = moved_m_;
+        localized_.store(true, std::memory_order_release);  // T_prior_world_ is written above
+      }
+      busy_.store(false, std::memory_order_release);
+    }
+    idle_.notify_all();
+    HWR_LOG_INFO("reloc", "attempt %d at %.1f m moved (%d local points): %s", attempt, moved_m_, local_n_,
+                 r.message.c_str());
+  }
+}
+
+}  // namespace hwr::recon

@@ -1,0 +1,266 @@
+// RelocalizationWorker: attempts run on the worker thread against a prior map written from rendered
+// sim lab keyframes; the scheduler-side calls never block or allocate, attempts are spaced by the
+// motion rule, and a success fixes T_prior_world.
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+#include <opencv2/imgproc.hpp>
+
+#include "temp_dir.hpp"
+#include "hwr/core/alloc_counter.hpp"
+#include "hwr/core/arena.hpp"
+#include "hwr/estimation/orb_extractor.hpp"
+#include "hwr/recon/keyframe_cloud.hpp"
+#include "hwr/recon/map_store.hpp"
+#include "hwr/recon/prior_map.hpp"
+#include "hwr/recon/relocalization_worker.hpp"
+#include "hwr/recon/voxel_map.hpp"
+#include "hwr/sim/scenario.hpp"
+#include "hwr/sim/sim_live_log.hpp"
+
+namespace hwr::recon {
+namespace {
+
+constexpr double kDeg = 3.14159265358979323846 / 180.0;
+constexpr int kMaxFeatures = 800;
+
+struct Rendered {
+  hal::PinholeIntrinsics K;
+  std::string prior_dir;
+  // The query: its keyframe's features and pose, and its local map, in a current world frame placed
+  // by kT_prior_world.
+  std::unique_ptr<estimation::FrameFeatures> features;
+  Eigen::Isometry3d T_world_cam = Eigen::Isometry3d::Identity();
+  std::unique_ptr<VoxelMap> local_map;
+  std::unique_ptr<estimation::FrameFeatures> outdoor_features;
+  std::unique_ptr<VoxelMap> outdoor_map;
+  Eigen::Isometry3d T_world_cam_outdoor = Eigen::Isometry3d::Identity();
+};
+
+Eigen::Isometry3d known_T_prior_world() {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = Eigen::AngleAxisd(-25.0 * kDeg, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  T.translation() = Eigen::Vector3d(-2.0, 1.5, 0.0);
+  return T;
+}
+
+// Renders frames of `scenario`; with `store` each keyframe goes into a segment of the store (one
+// segment, truth poses, 2 cm voxels), else into `map` (5 cm voxels, moved by T_world_truth) and the
+// last one's features into `features`.
+void render(const std::string& scenario, size_t first, size_t last, size_t step, MapStore* store,
+            const Eigen::Isometry3d& T_world_truth, VoxelMap* map, estimation::FrameFeatures* features,
+            Eigen::Isometry3d* T_world_cam, hal::PinholeIntrinsics* K_out) {
+  auto spec = sim::load_scenario(scenario);
+  ASSERT_TRUE(spec.ok()) << spec.status().message();
+  auto live = sim::open_sim_live_log(spec.value(), (last + 10) / spec->camera.rate_hz);
+  ASSERT_TRUE(live.ok()) << live.status().message();
+  const hal::PinholeIntrinsics K = live->log.info.intrinsics;
+  if (K_out != nullptr) *K_out = K;
+  estimation::OrbConfig ocfg;
+  ocfg.max_features = kMaxFeatures;
+  estimation::GridOrbExtractor orb(ocfg, K.width, K.height);
+  KeyframeCloudConfig cloud_config;
+  core::Arena arena(keyframe_cloud_capacity_bytes(K.width, K.height, cloud_config));
+  auto voxels = VoxelMap::create({0.02, 1'000'000});
+  ASSERT_TRUE(voxels.ok());
+  hal::RgbdFrame f;
+  f.bgr.create(K.height, K.width, CV_8UC3);
+  f.depth_m.create(K.height, K.width, CV_32FC1);
+  cv::Mat gray;
+  estimation::FrameFeatures kf_features(kMaxFeatures, K.width, K.height);
+  SegmentRecord seg;
+  for (size_t i = first; i < last; i += step) {
+    ASSERT_TRUE(live->log.load_frame(i, &f).ok());
+    const Eigen::Isometry3d T_truth_cam = live->groundtruth_T_world_cam_at_frames[i].T_world_body;
+    cv::cvtColor(f.bgr, gray, cv::COLOR_BGR2GRAY);
+    ASSERT_TRUE(orb.extract(gray, f.depth_m, K, &kf_features).ok());
+    arena.reset();
+    if (store != nullptr) {
+      if (seg.keyframes.empty()) seg.T_world_segment = T_truth_cam;
+      auto cloud = build_keyframe_cloud(f.bgr, f.depth_m, K, seg.T_world_segment.inverse() * T_truth_cam,
+                                        cloud_config, &arena);
+      ASSERT_TRUE(cloud.ok());
+      voxels->insert(cloud.value());
+      StoredKeyframe s;
+      s.id = static_cast<int32_t>(seg.keyframes.size());
+      s.t_ns = live->log.frame_t_ns[i];
+      s.T_world_cam = T_truth_cam;
+      for (int k = 0; k < kf_features.size(); ++k) {
+        const estimation::Feature& ft = kf_features.feature(k);
+        s.features.push_back({ft.u_px, ft.v_px, ft.depth_m, static_cast<uint8_t>(ft.octave)});
+        s.descriptors.insert(s.descriptors.end(), kf_features.descriptor(k), kf_features.descriptor(k) + 32);
+      }
+      seg.keyframes.push_back(std::move(s));
+    } else {
+      const Eigen::Isometry3d T_world_cam_i = T_world_truth * T_truth_cam;
+      auto cloud = build_keyframe_cloud(f.bgr, f.depth_m, K, T_world_cam_i, cloud_config, &arena);
+      ASSERT_TRUE(cloud.ok());
+      map->insert(cloud.value());
+      *features = kf_features;
+      *T_world_cam = T_world_cam_i;
+    }
+  }
+  if (store != nullptr) {
+    voxels->for_each([&](const Voxel& v) {
+      CloudPoint p;
+      p.x_m = v.x_m;
+      p.y_m = v.y_m;
+      p.z_m = v.z_m;
+      seg.points_segment.push_back(p);
+    });
+    ASSERT_TRUE(store->write_segment(seg).ok());
+  }
+}
+
+const Rendered& rendered() {
+  static hwr::testing::TempDir tmp("hwr_reloc_worker");
+  static const Rendered* r = [] {
+    auto* out = new Rendered;
+    out->prior_dir = tmp.path() + "/prior";
+    StoreMetadata meta;
+    meta.run_id = "worker-prior";
+    auto lab = sim::load_scenario("lab");
+    EXPECT_TRUE(lab.ok());
+    meta.intrinsics = lab->camera.intrinsics;
+    auto store = MapStore::open(out->prior_dir, meta);
+    EXPECT_TRUE(store.ok());
+    render("lab", 1230, 1530, 12, &store.value(), Eigen::Isometry3d::Identity(), nullptr, nullptr, nullptr,
+           &out->K);
+    out->features = std::make_unique<estimation::FrameFeatures>(kMaxFeatures, out->K.width, out->K.height);
+    out->outdoor_features =
+        std::make_unique<estimation::FrameFeatures>(kMaxFeatures, out->K.width, out->K.height);
+    out->local_map = std::make_unique<VoxelMap>(VoxelMap::create({0.05, 400'000}).value());
+    out->outdoor_map = std::make_unique<VoxelMap>(VoxelMap::create({0.05, 400'000}).value());
+    // Half a step after the prior's keyframes: never the same image. The current world is the prior
+    // moved by kT_prior_world^-1.
+    render("lab", 1326 + 6, 1420, 12, nullptr, known_T_prior_world().inverse(), out->local_map.get(),
+           out->features.get(), &out->T_world_cam, nullptr);
+    render("outdoor", 600, 700, 12, nullptr, Eigen::Isometry3d::Identity(), out->outdoor_map.get(),
+           out->outdoor_features.get(), &out->T_world_cam_outdoor, nullptr);
+    return out;
+  }();
+  return *r;
+}
+
+std::unique_ptr<RelocalizationWorker> start_worker(const Rendered& r, RelocalizationWorkerConfig config) {
+  auto prior = PriorMap::open(r.prior_dir);
+  EXPECT_TRUE(prior.ok()) << prior.status().message();
+  auto w = RelocalizationWorker::start(std::move(prior.value()), config, r.K, kMaxFeatures);
+  EXPECT_TRUE(w.ok()) << w.status().message();
+  return std::move(w.value());
+}
+
+TEST(RelocalizationWorker, GivenAQueryInsideThePriorThenTheWorkerLocalizesOffTheCallersThread) {
+  const Rendered& r = rendered();
+  RelocalizationWorkerConfig config;
+  config.first_attempt_m = 1.0;
+  auto w = start_worker(r, config);
+  w->wait_idle();  // the appearance index is built
+  const RelocalizationPriors none;
+  EXPECT_FALSE(w->offer(*r.features, r.T_world_cam, *r.local_map, Eigen::Isometry3d::Identity(), 0.5, none))
+      << "taken before first_attempt_m of motion";
+  bool taken = false;
+  {
+    core::AllocationScope scope;
+    taken = w->offer(*r.features, r.T_world_cam, *r.local_map, Eigen::Isometry3d::Identity(), 1.2, none);
+    EXPECT_EQ(scope.allocations(), 0u) << "offer() copies into buffers sized at start()";
+  }
+  ASSERT_TRUE(taken);
+  EXPECT_FALSE(w->offer(*r.features, r.T_world_cam, *r.local_map, Eigen::Isometry3d::Identity(), 5.0, none))
+      << "an attempt is running (or has localized): nothing more is taken";
+  w->wait_idle();
+  const RelocalizationWorkerStatus s = w->status();
+  ASSERT_TRUE(w->localized()) << s.last_message;
+  const Eigen::Isometry3d d = known_T_prior_world().inverse() * w->T_prior_world();
+  std::printf("[ worker   ] localized in %.2f s: %.2f cm %.3f deg; %s\n", s.wall_s_total,
+              d.translation().norm() * 100, Eigen::AngleAxisd(d.linear()).angle() / kDeg,
+              s.last_message.c_str());
+  EXPECT_LT(d.translation().norm(), 0.03);
+  EXPECT_LT(Eigen::AngleAxisd(d.linear()).angle(), 0.3 * kDeg);
+  EXPECT_EQ(s.attempts, 1);
+  ASSERT_EQ(s.log.size(), 1u);
+  EXPECT_DOUBLE_EQ(s.log[0].moved_m, 1.2);
+  EXPECT_GT(s.log[0].local_points, 1000);
+  EXPECT_DOUBLE_EQ(s.moved_at_localization_m, 1.2);
+  EXPECT_FALSE(w->offer(*r.features, r.T_world_cam, *r.local_map, Eigen::Isometry3d::Identity(), 9.0, none))
+      << "localized: no more attempts";
+}
+
+TEST(RelocalizationWorker, GivenQueriesFromOutsideThePriorThenNotLocalizedAndRetriesFollowTheMotionRule) {
+  const Rendered& r = rendered();
+  RelocalizationWorkerConfig config;
+  config.first_attempt_m = 0.0;
+  config.retry_every_m = 2.0;
+  auto w = start_worker(r, config);
+  w->wait_idle();
+  const RelocalizationPriors none;
+  const Eigen::Isometry3d I = Eigen::Isometry3d::Identity();
+  ASSERT_TRUE(w->offer(*r.outdoor_features, r.T_world_cam_outdoor, *r.outdoor_map, I, 1.0, none));
+  w->wait_idle();
+  EXPECT_FALSE(w->localized()) << w->status().last_message;
+  EXPECT_FALSE(w->offer(*r.outdoor_features, r.T_world_cam_outdoor, *r.outdoor_map, I, 2.5, none))
+      << "less than retry_every_m since the last attempt";
+  ASSERT_TRUE(w->offer(*r.outdoor_features, r.T_world_cam_outdoor, *r.outdoor_map, I, 3.0, none));
+  w->wait_idle();
+  const RelocalizationWorkerStatus s = w->status();
+  EXPECT_FALSE(s.localized);
+  EXPECT_EQ(s.attempts, 2);
+  ASSERT_EQ(s.log.size(), 2u);
+  EXPECT_NE(s.log[1].reason, RelocalizationReason::kLocalized);
+  EXPECT_FALSE(s.last_message.empty());
+  EXPECT_EQ(w->offers_taken(), 2u);
+}
+
+TEST(RelocalizationWorker, GivenTheLocalMapInItsSegmentFrameThenOnlyPointsNearTheCameraAreSent) {
+  const Rendered& r = rendered();
+  RelocalizationWorkerConfig config;
+  config.first_attempt_m = 0.0;
+  config.local_radius_m = 2.5;  // the lab query's camera sees its points from 1-4 m
+  config.max_attempts_logged = 4;
+  auto w = start_worker(r, config);
+  w->wait_idle();
+  // The local map handed over in a segment frame placed at T_world_segment (the map's points moved
+  // into it): the points sent are the voxels within the radius of the camera in the world frame.
+  Eigen::Isometry3d T_world_segment = Eigen::Isometry3d::Identity();
+  T_world_segment.linear() = Eigen::AngleAxisd(0.7, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  T_world_segment.translation() = Eigen::Vector3d(4.0, -3.0, 0.5);
+  auto segment_map = VoxelMap::create({0.05, 400'000});
+  ASSERT_TRUE(segment_map.ok());
+  std::vector<CloudPoint> moved;
+  r.local_map->for_each([&](const Voxel& v) {
+    const Eigen::Vector3d p = T_world_segment.inverse() * Eigen::Vector3d(v.x_m, v.y_m, v.z_m);
+    CloudPoint c;
+    c.x_m = static_cast<float>(p.x());
+    c.y_m = static_cast<float>(p.y());
+    c.z_m = static_cast<float>(p.z());
+    moved.push_back(c);
+  });
+  segment_map->insert(moved.data(), static_cast<int>(moved.size()));
+  ASSERT_TRUE(w->offer(*r.features, r.T_world_cam, segment_map.value(), T_world_segment, 1.0, {}));
+  w->wait_idle();
+  const int sent = w->status().log.at(0).local_points;
+  int expected = 0;
+  segment_map->for_each([&](const Voxel& v) {
+    const Eigen::Vector3d p_world = T_world_segment * Eigen::Vector3d(v.x_m, v.y_m, v.z_m);
+    expected += (p_world - r.T_world_cam.translation()).norm() <= 2.5 ? 1 : 0;
+  });
+  EXPECT_GT(expected, 100);
+  EXPECT_NEAR(sent, expected, 2);  // float rounding at the radius
+  EXPECT_LT(sent, segment_map->size() / 2);
+}
+
+TEST(RelocalizationWorker, GivenAnInvalidConfigThenStartFails) {
+  const Rendered& r = rendered();
+  RelocalizationWorkerConfig config;
+  config.max_local_points = 0;
+  auto prior = PriorMap::open(r.prior_dir);
+  ASSERT_TRUE(prior.ok());
+  auto w = RelocalizationWorker::start(std::move(prior.value()), config, r.K, kMaxFeatures);
+  ASSERT_FALSE(w.ok());
+  EXPECT_NE(w.status().message().find("max_local_points"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace hwr::recon
