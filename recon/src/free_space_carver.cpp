@@ -320,7 +320,7 @@ core::Expected<FreeSpaceCarver> FreeSpaceCarver::create(const FreeSpaceCarverCon
     return core::InvalidArgument("free-space carver: min_cos_incidence must be in (0, 1] (got " +
                                  std::to_string(c.min_cos_incidence) + ")");
   }
-  if (!(std::isfinite(c.max_surface_bias_m) && c.max_surface_bias_m > 0) ||
+  if (!(std::isfinite(c.max_surface_bias_m) && c.max_surface_bias_m > 0) || !(c.median_sigmas >= 0.0f) ||
       !(std::isfinite(c.bias_window_m) && c.bias_window_m > c.max_surface_bias_m) ||
       !(std::isfinite(c.max_iqr_to_margin) && c.max_iqr_to_margin > 0) ||
       !(std::isfinite(c.check_reach_behind_m) && c.check_reach_behind_m >= c.bias_window_m) ||
@@ -465,9 +465,13 @@ core::Expected<FreeSpaceObserveStats> FreeSpaceCarver::observe(const cv::Mat& de
       const int checkable = cl.near_rays + cl.far_rays;
       cl.checked = checkable >= c.min_cluster_rays;
       if (!cl.checked) continue;  // unverified: its rays cast nothing
+      // The median's own noise: its standard error is ~1.2533 sigma / sqrt(n) with sigma ~ IQR / 1.349
+      // (normal residuals), so a median within median_sigmas of it is no evidence of a bias.
+      const float median_se_m =
+          0.929f * cl.iqr_m / std::sqrt(static_cast<float>(std::max<int64_t>(cl.pairs, 1)));
+      const float max_bias_m = std::max(c.max_surface_bias_m, c.median_sigmas * median_se_m);
       cl.passed = static_cast<float>(cl.near_rays) >= c.min_near_fraction * static_cast<float>(checkable) &&
-                  std::abs(cl.median_m) <= c.max_surface_bias_m &&
-                  cl.iqr_m <= c.max_iqr_to_margin * cl.margin_m;
+                  std::abs(cl.median_m) <= max_bias_m && cl.iqr_m <= c.max_iqr_to_margin * cl.margin_m;
       any_failed = any_failed || !cl.passed;
       if (cl.passed) stats.surface_pairs += cl.pairs;
       rc.cluster_votes[kk] = cl.passed;

@@ -20,10 +20,20 @@ core::Expected<std::unique_ptr<RelocalizationWorker>> RelocalizationWorker::star
     return core::InvalidArgument("relocalization: first_attempt_m must be >= 0 and retry_every_m positive");
   }
   if (config.max_attempts_logged < 0) return core::InvalidArgument("relocalization: max_attempts_logged < 0");
+  if (config.update_prior && config.keyframe_slots < 1) {
+    return core::InvalidArgument("relocalization: keyframe_slots must be >= 1");
+  }
   auto relocalizer = Relocalizer::create(config.relocalizer, K, max_features);
   if (!relocalizer.ok()) return relocalizer.status();
+  std::unique_ptr<PriorMapUpdater> updater;
+  if (config.update_prior) {
+    auto u = PriorMapUpdater::create(prior.dir(), config.update, K);
+    if (!u.ok()) return u.status();
+    updater = std::make_unique<PriorMapUpdater>(std::move(u.value()));
+  }
   std::unique_ptr<RelocalizationWorker> w(
       new RelocalizationWorker(std::move(prior), std::move(relocalizer.value()), config, K, max_features));
+  w->updater_ = std::move(updater);
   w->thread_ = std::thread([p = w.get()] { p->run(); });
   return w;
 }
@@ -31,7 +41,8 @@ core::Expected<std::unique_ptr<RelocalizationWorker>> RelocalizationWorker::star
 RelocalizationWorker::RelocalizationWorker(PriorMap prior, Relocalizer relocalizer,
                                            const RelocalizationWorkerConfig& config,
                                            const hal::PinholeIntrinsics& K, int max_features)
-    : config_(config),
+    : K_(K),
+      config_(config),
       prior_(std::move(prior)),
       relocalizer_(std::move(relocalizer)),
       max_features_(max_features),
@@ -39,6 +50,13 @@ RelocalizationWorker::RelocalizationWorker(PriorMap prior, Relocalizer relocaliz
       local_world_(static_cast<size_t>(config.max_local_points)),
       next_attempt_m_(config.first_attempt_m) {
   status_.log.reserve(static_cast<size_t>(config.max_attempts_logged));
+  if (config.update_prior) {
+    slots_.resize(static_cast<size_t>(config.keyframe_slots));
+    for (KeyframeSlot& s : slots_) {
+      s.bgr.create(K.height, K.width, CV_8UC3);
+      s.depth_m.create(K.height, K.width, CV_32FC1);
+    }
+  }
   busy_.store(true, std::memory_order_relaxed);  // until the index is built (run())
 }
 
@@ -51,6 +69,91 @@ void RelocalizationWorker::stop() {
   }
   wake_.notify_all();
   if (thread_.joinable()) thread_.join();
+}
+
+void RelocalizationWorker::finish() {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    finishing_ = true;
+  }
+  wake_.notify_all();
+  if (thread_.joinable()) thread_.join();
+}
+
+bool RelocalizationWorker::offer_keyframe(const cv::Mat& bgr, const cv::Mat& depth_m,
+                                          const Eigen::Isometry3d& T_world_cam) {
+  if (!localized() || updater_ == nullptr) return false;
+  if (bgr.type() != CV_8UC3 || depth_m.type() != CV_32FC1 || bgr.cols != K_.width || bgr.rows != K_.height ||
+      depth_m.size() != bgr.size()) {
+    return false;
+  }
+  size_t slot = 0;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (slot_count_ == slots_.size()) {
+      ++status_.keyframes_dropped;
+      return false;
+    }
+    slot = (slot_head_ + slot_count_) % slots_.size();
+  }
+  // The slot is not in the queue yet: the worker does not read it.
+  bgr.copyTo(slots_[slot].bgr);  // same size and type: no allocation
+  depth_m.copyTo(slots_[slot].depth_m);
+  slots_[slot].T_world_cam = T_world_cam;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    ++slot_count_;
+  }
+  wake_.notify_one();
+  return true;
+}
+
+bool RelocalizationWorker::take_updated(UpdatedSegment* out) {
+  std::unique_lock<std::mutex> lock(mutex_, std::try_to_lock);
+  if (!lock.owns_lock() || updated_.empty()) return false;
+  *out = std::move(updated_.front());
+  updated_.erase(updated_.begin());
+  return true;
+}
+
+struct RelocalizationWorker::QueuedSink final : UpdatedSegmentSink {
+  RelocalizationWorker* w;
+  explicit QueuedSink(RelocalizationWorker* worker) : w(worker) {}
+  void take_updated(SegmentRecord&& segment, int version, int points_deleted) override {
+    UpdatedSegment u;
+    u.record = std::move(segment);
+    u.version = version;
+    u.points_deleted = points_deleted;
+    std::lock_guard<std::mutex> lock(w->mutex_);
+    w->updated_.push_back(std::move(u));
+  }
+};
+
+void RelocalizationWorker::run_updates() {
+  QueuedSink sink(this);
+  for (;;) {
+    size_t slot = 0;
+    {
+      std::unique_lock<std::mutex> lock(mutex_);
+      wake_.wait(lock, [&] { return stop_ || finishing_ || slot_count_ > 0; });
+      if (stop_) return;
+      if (slot_count_ == 0) break;  // finishing and nothing queued
+      slot = slot_head_;
+    }
+    const KeyframeSlot& k = slots_[slot];
+    const core::Status st = updater_->observe(k.depth_m, T_prior_world_ * k.T_world_cam, &sink);
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      slot_head_ = (slot_head_ + 1) % slots_.size();
+      --slot_count_;
+      status_.update = updater_->counters();
+      if (!st.ok() && status_.update_error.empty()) status_.update_error = st.message();
+    }
+  }
+  const core::Status st = updater_->finish(&sink);
+  std::lock_guard<std::mutex> lock(mutex_);
+  status_.update = updater_->counters();
+  if (!st.ok() && status_.update_error.empty()) status_.update_error = st.message();
 }
 
 void RelocalizationWorker::wait_idle() {
@@ -67,7 +170,7 @@ bool RelocalizationWorker::offer(const estimation::FrameFeatures& features,
                                  const Eigen::Isometry3d& T_world_cam, const VoxelMap& local_map,
                                  const Eigen::Isometry3d& T_world_segment, double moved_m,
                                  const RelocalizationPriors& priors) {
-  if (localized() || busy() || moved_m < next_attempt_m_) return false;
+  if (!wants_query(moved_m)) return false;
   if (features.size() > max_features_ || features.capacity() != features_.capacity() ||
       features.scale_per_octave.size() != features_.scale_per_octave.size()) {
     ++offers_refused_;
@@ -124,8 +227,8 @@ void RelocalizationWorker::run() {
   for (;;) {
     {
       std::unique_lock<std::mutex> lock(mutex_);
-      wake_.wait(lock, [&] { return stop_ || busy_.load(std::memory_order_acquire); });
-      if (stop_) {
+      wake_.wait(lock, [&] { return stop_ || finishing_ || busy_.load(std::memory_order_acquire); });
+      if (stop_ || (finishing_ && !busy_.load(std::memory_order_acquire))) {
         busy_.store(false, std::memory_order_release);
         idle_.notify_all();
         return;
@@ -170,6 +273,10 @@ void RelocalizationWorker::run() {
     idle_.notify_all();
     HWR_LOG_INFO("reloc", "attempt %d at %.1f m moved (%d local points): %s", attempt, moved_m_, local_n_,
                  r.message.c_str());
+    if (r.localized) {
+      if (updater_ != nullptr) run_updates();
+      return;
+    }
   }
 }
 

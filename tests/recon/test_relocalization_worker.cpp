@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 #include <opencv2/imgproc.hpp>
 
+#include "sim_frames.hpp"
 #include "temp_dir.hpp"
 #include "hwr/core/alloc_counter.hpp"
 #include "hwr/core/arena.hpp"
@@ -52,56 +53,47 @@ Eigen::Isometry3d known_T_prior_world() {
 void render(const std::string& scenario, size_t first, size_t last, size_t step, MapStore* store,
             const Eigen::Isometry3d& T_world_truth, VoxelMap* map, estimation::FrameFeatures* features,
             Eigen::Isometry3d* T_world_cam, hal::PinholeIntrinsics* K_out) {
-  auto spec = sim::load_scenario(scenario);
-  ASSERT_TRUE(spec.ok()) << spec.status().message();
-  auto live = sim::open_sim_live_log(spec.value(), (last + 10) / spec->camera.rate_hz);
-  ASSERT_TRUE(live.ok()) << live.status().message();
-  const hal::PinholeIntrinsics K = live->log.info.intrinsics;
-  if (K_out != nullptr) *K_out = K;
-  estimation::OrbConfig ocfg;
-  ocfg.max_features = kMaxFeatures;
-  estimation::GridOrbExtractor orb(ocfg, K.width, K.height);
+  std::unique_ptr<estimation::GridOrbExtractor> orb;
+  std::unique_ptr<estimation::FrameFeatures> kf_features;
+  std::unique_ptr<core::Arena> arena;
   KeyframeCloudConfig cloud_config;
-  core::Arena arena(keyframe_cloud_capacity_bytes(K.width, K.height, cloud_config));
   auto voxels = VoxelMap::create({0.02, 1'000'000});
   ASSERT_TRUE(voxels.ok());
-  hal::RgbdFrame f;
-  f.bgr.create(K.height, K.width, CV_8UC3);
-  f.depth_m.create(K.height, K.width, CV_32FC1);
   cv::Mat gray;
-  estimation::FrameFeatures kf_features(kMaxFeatures, K.width, K.height);
   SegmentRecord seg;
-  for (size_t i = first; i < last; i += step) {
-    ASSERT_TRUE(live->log.load_frame(i, &f).ok());
-    const Eigen::Isometry3d T_truth_cam = live->groundtruth_T_world_cam_at_frames[i].T_world_body;
-    cv::cvtColor(f.bgr, gray, cv::COLOR_BGR2GRAY);
-    ASSERT_TRUE(orb.extract(gray, f.depth_m, K, &kf_features).ok());
-    arena.reset();
-    if (store != nullptr) {
-      if (seg.keyframes.empty()) seg.T_world_segment = T_truth_cam;
-      auto cloud = build_keyframe_cloud(f.bgr, f.depth_m, K, seg.T_world_segment.inverse() * T_truth_cam,
-                                        cloud_config, &arena);
-      ASSERT_TRUE(cloud.ok());
-      voxels->insert(cloud.value());
-      StoredKeyframe s;
-      s.id = static_cast<int32_t>(seg.keyframes.size());
-      s.t_ns = live->log.frame_t_ns[i];
-      s.T_world_cam = T_truth_cam;
-      for (int k = 0; k < kf_features.size(); ++k) {
-        const estimation::Feature& ft = kf_features.feature(k);
-        s.features.push_back({ft.u_px, ft.v_px, ft.depth_m, static_cast<uint8_t>(ft.octave)});
-        s.descriptors.insert(s.descriptors.end(), kf_features.descriptor(k), kf_features.descriptor(k) + 32);
-      }
-      seg.keyframes.push_back(std::move(s));
-    } else {
-      const Eigen::Isometry3d T_world_cam_i = T_world_truth * T_truth_cam;
-      auto cloud = build_keyframe_cloud(f.bgr, f.depth_m, K, T_world_cam_i, cloud_config, &arena);
-      ASSERT_TRUE(cloud.ok());
-      map->insert(cloud.value());
-      *features = kf_features;
-      *T_world_cam = T_world_cam_i;
-    }
-  }
+  hwr::testing::for_each_sim_frame(
+      scenario, first, last, step,
+      [&](size_t, const hal::RgbdFrame& f, const Eigen::Isometry3d& T_truth_cam,
+          const hal::PinholeIntrinsics& K) {
+        if (!orb) {
+          if (K_out != nullptr) *K_out = K;
+          estimation::OrbConfig ocfg;
+          ocfg.max_features = kMaxFeatures;
+          orb = std::make_unique<estimation::GridOrbExtractor>(ocfg, K.width, K.height);
+          kf_features = std::make_unique<estimation::FrameFeatures>(kMaxFeatures, K.width, K.height);
+          arena =
+              std::make_unique<core::Arena>(keyframe_cloud_capacity_bytes(K.width, K.height, cloud_config));
+        }
+        cv::cvtColor(f.bgr, gray, cv::COLOR_BGR2GRAY);
+        ASSERT_TRUE(orb->extract(gray, f.depth_m, K, kf_features.get()).ok());
+        arena->reset();
+        if (store != nullptr) {
+          if (seg.keyframes.empty()) seg.T_world_segment = T_truth_cam;
+          auto cloud = build_keyframe_cloud(f.bgr, f.depth_m, K, seg.T_world_segment.inverse() * T_truth_cam,
+                                            cloud_config, arena.get());
+          ASSERT_TRUE(cloud.ok());
+          voxels->insert(cloud.value());
+          seg.keyframes.push_back(hwr::testing::stored_keyframe(
+              *kf_features, T_truth_cam, static_cast<int32_t>(seg.keyframes.size()), f.t_ns));
+        } else {
+          const Eigen::Isometry3d T_world_cam_i = T_world_truth * T_truth_cam;
+          auto cloud = build_keyframe_cloud(f.bgr, f.depth_m, K, T_world_cam_i, cloud_config, arena.get());
+          ASSERT_TRUE(cloud.ok());
+          map->insert(cloud.value());
+          *features = *kf_features;
+          *T_world_cam = T_world_cam_i;
+        }
+      });
   if (store != nullptr) {
     voxels->for_each([&](const Voxel& v) {
       CloudPoint p;

@@ -86,6 +86,7 @@ core::Expected<SimLiveLog> open_sim_live_log(const ScenarioSpec& spec, double du
   log.info.name = "sim-live:" + run.spec.name;
   log.info.intrinsics = calib.intrinsics;
   log.info.T_imu_cam = calib.T_imu_cam;
+  log.info.gnss_antenna_imu_m = calib.gnss_antenna_imu_m;
   log.info.camera_rate_hz = calib.camera_rate_hz;
   log.info.imu_rate_hz = calib.imu_rate_hz;
   log.info.stereo = calib.stereo;

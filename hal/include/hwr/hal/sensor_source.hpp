@@ -20,6 +20,7 @@ struct SourceInfo {
   std::string name;  // e.g. "tum:/data/rgbd_dataset_freiburg3_teddy"
   PinholeIntrinsics intrinsics;
   Eigen::Isometry3d T_imu_cam = Eigen::Isometry3d::Identity();
+  Eigen::Vector3d gnss_antenna_imu_m = Eigen::Vector3d::Zero();  // the GNSS antenna in the IMU frame
   bool has_imu = false;  // gyro + accelerometer (TUM has accelerometer only: has_imu false)
   bool has_mag = false;
   bool has_gnss = false;

@@ -98,6 +98,9 @@ struct FreeSpaceCarverConfig {
   // Pose check (header): clusters of check rays by the measured normal; see the header comment.
   // bias_check_subsample = 0 turns the check off (every ray votes).
   float max_surface_bias_m = 0.002f;
+  // ... or this many standard errors of the cluster's median (0.929 IQR / sqrt(pairs)), whichever is
+  // larger: with noisy depth and few pairs the median alone wanders by more than 2 mm.
+  float median_sigmas = 3.0f;
   float bias_window_m = 0.05f;        // near: |s| below this
   float check_reach_behind_m = 0.3f;  // check rays end this far behind the surface (>= bias_window_m)
   float max_iqr_to_margin = 0.6f;  // ... or whose interquartile range of s exceeds this times the mean margin

@@ -1,10 +1,16 @@
 #pragma once
-// Relocalization off the control loop (issue #6 item 2: "else keep trying while the robot moves and
-// say 'not localized'"). The robot's mapping task offers a query now and then (offer()); a worker
+// Relocalization and prior-map update off the control loop (issue #6 items 2-3: "else keep trying
+// while the robot moves and say 'not localized'"; "after relocalization, current observations update
+// the prior map"). The robot's mapping task offers a query now and then (offer()); a worker
 // thread runs Relocalizer::relocalize() on a copy of it against the prior map, which only this
 // thread touches. The mapping task never waits: offer() returns false while an attempt is running
 // or before the robot has moved retry_every_m since the last one, and localized() is one atomic
 // load. Once an attempt succeeds, T_prior_world is fixed and the worker stops searching.
+// With update_prior, the worker then runs the map update (prior_map_updater.hpp): the mapping task
+// offers each settled keyframe's images and pose (offer_keyframe(), copied into keyframe_slots
+// preallocated slots; a keyframe offered while they are all full is dropped and counted), and takes
+// the updated prior segments back (take_updated()) for the map store and the ground station.
+// finish() processes what is queued, closes the open segments and joins the thread.
 //
 // The query copy (the keyframe's features, the local map's points near the camera, the priors) is
 // sized in start(): offer() copies into it without allocating. The worker thread allocates (see
@@ -29,6 +35,7 @@
 #include "hwr/hal/pinhole_camera.hpp"
 #include "hwr/recon/keyframe_cloud.hpp"
 #include "hwr/recon/prior_map.hpp"
+#include "hwr/recon/prior_map_updater.hpp"
 #include "hwr/recon/relocalizer.hpp"
 #include "hwr/recon/voxel_map.hpp"
 
@@ -43,6 +50,16 @@ struct RelocalizationWorkerConfig {
   double local_radius_m = 8.0;
   int max_local_points = 100'000;
   int max_attempts_logged = 256;  // status(): the first ones are kept
+  bool update_prior = true;       // run the map update once localized
+  PriorMapUpdaterConfig update;
+  int keyframe_slots = 4;
+};
+
+// An updated prior segment (a new version) for the map store and the ground station.
+struct UpdatedSegment {
+  SegmentRecord record;  // in its segment frame; record.T_world_segment is in the prior frame
+  int version = 1;
+  int points_deleted = 0;
 };
 
 // One attempt, for the end-of-run report.
@@ -62,6 +79,9 @@ struct RelocalizationWorkerStatus {
   double wall_s_total = 0;                 // relocalize() time over every attempt
   std::string last_message;                // the last attempt's one-line result
   std::vector<RelocalizationAttempt> log;  // up to max_attempts_logged
+  PriorMapUpdaterCounters update;          // map update (after localization)
+  uint64_t keyframes_dropped = 0;          // offered while every slot was taken
+  std::string update_error;                // the first map-update error, if any
 };
 
 // The priors of a query (the caller fills them from the magnetometer and GNSS).
@@ -90,12 +110,25 @@ class RelocalizationWorker {
   bool offer(const estimation::FrameFeatures& features, const Eigen::Isometry3d& T_world_cam,
              const VoxelMap& local_map, const Eigen::Isometry3d& T_world_segment, double moved_m,
              const RelocalizationPriors& priors);
+  // Whether offer() would take a query now (idle, not localized, moved enough): the caller computes
+  // the query's priors only then.
+  bool wants_query(double moved_m) const { return !localized() && !busy() && moved_m >= next_attempt_m_; }
   // Whether an attempt succeeded; then T_prior_world() is fixed for the rest of the run.
   bool localized() const { return localized_.load(std::memory_order_acquire); }
   const Eigen::Isometry3d& T_prior_world() const { return T_prior_world_; }
   bool busy() const { return busy_.load(std::memory_order_acquire); }
   uint64_t offers_taken() const { return offers_taken_; }
   uint64_t offers_refused() const { return offers_refused_; }
+
+  // Map update (after localization): a settled keyframe's colour and depth images and its pose in the
+  // current world. False when not localized, updates are off, or every slot is taken (dropped,
+  // counted). Copies into preallocated slots: never allocates, never blocks on the update.
+  bool offer_keyframe(const cv::Mat& bgr, const cv::Mat& depth_m, const Eigen::Isometry3d& T_world_cam);
+  // Pops one updated prior segment, if any (the mapping task, each cycle; end of run after finish()).
+  bool take_updated(UpdatedSegment* out);
+  // End of run: the queued keyframes are processed, the open segments closed (their updates queued
+  // for take_updated()), the thread joined.
+  void finish();
 
   // Waits for a running attempt to end (end of a replay: its answer still counts).
   void wait_idle();
@@ -109,7 +142,20 @@ class RelocalizationWorker {
   RelocalizationWorker(PriorMap prior, Relocalizer relocalizer, const RelocalizationWorkerConfig& config,
                        const hal::PinholeIntrinsics& K, int max_features);
   void run();
+  void run_updates();  // after localization
+  struct QueuedSink;
 
+  std::unique_ptr<PriorMapUpdater> updater_;  // update_prior
+  struct KeyframeSlot {
+    cv::Mat bgr, depth_m;
+    Eigen::Isometry3d T_world_cam = Eigen::Isometry3d::Identity();
+  };
+  std::vector<KeyframeSlot> slots_;
+  size_t slot_head_ = 0, slot_count_ = 0;  // guarded by mutex_; the head slot is the worker's until popped
+  std::vector<UpdatedSegment> updated_;    // guarded by mutex_
+  bool finishing_ = false;                 // guarded by mutex_
+
+  hal::PinholeIntrinsics K_;
   RelocalizationWorkerConfig config_;
   PriorMap prior_;
   Relocalizer relocalizer_;

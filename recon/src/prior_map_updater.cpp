@@ -1,0 +1,216 @@
+#include "hwr/recon/prior_map_updater.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <utility>
+
+#include "hwr/core/log.hpp"
+
+namespace hwr::recon {
+
+struct PriorMapUpdater::Impl {
+  // A prior segment as the updater knows it before reading its cloud.
+  struct Entry {
+    uint32_t segment_id = 0;
+    Eigen::Isometry3d T_prior_segment = Eigen::Isometry3d::Identity();
+    Eigen::AlignedBox3d box_prior;  // its keyframes grown by reach_m, then its cloud once read
+    bool skip = false;              // unreadable or too big
+  };
+  // An open segment: its record and the carver over its points (segment frame).
+  struct Open {
+    size_t entry = 0;
+    SegmentRecord record;
+    int carver = 0;  // index into carvers
+    uint64_t last_seen = 0;
+  };
+
+  PriorMapUpdaterConfig config;
+  hal::PinholeIntrinsics K;
+  MapStore store;
+  std::vector<Entry> entries;
+  std::vector<FreeSpaceCarver> carvers;  // max_open_segments, reused
+  std::vector<Open> open;
+  std::vector<std::pair<double, size_t>> seen;
+  uint64_t tick = 0;
+  PriorMapUpdaterCounters counters;
+
+  Impl(const PriorMapUpdaterConfig& c, const hal::PinholeIntrinsics& k, MapStore s)
+      : config(c), K(k), store(std::move(s)) {}
+
+  core::Status close(size_t i, UpdatedSegmentSink* sink) {
+    Open& o = open[i];
+    auto deleted = carvers[static_cast<size_t>(o.carver)].apply(&o.record.points_segment);
+    core::Status st = deleted.status();
+    if (deleted.ok() && deleted.value() > 0) {
+      ++counters.segments_updated;
+      counters.points_deleted += deleted.value();
+      HWR_LOG_INFO("map-update", "prior segment %u: %d of %zu points deleted (observed free), version %d",
+                   o.record.segment_id, deleted.value(), o.record.points_segment.size() + deleted.value(),
+                   config.version);
+      if (sink != nullptr) sink->take_updated(std::move(o.record), config.version, deleted.value());
+    }
+    open.erase(open.begin() + static_cast<ptrdiff_t>(i));
+    return st;
+  }
+
+  // Opens entry e (closing the least recently seen segment that is not in `keep` when all slots are
+  // taken). Returns the open index, or -1 when the segment is skipped.
+  core::Expected<int> open_entry(size_t e, UpdatedSegmentSink* sink) {
+    for (size_t i = 0; i < open.size(); ++i) {
+      if (open[i].entry == e) return static_cast<int>(i);
+    }
+    std::vector<bool> used(carvers.size(), false);
+    if (open.size() == carvers.size()) {
+      size_t lru = open.size();
+      for (size_t i = 0; i < open.size(); ++i) {
+        if (open[i].last_seen == tick) continue;  // seen by this keyframe: kept
+        if (lru == open.size() || open[i].last_seen < open[lru].last_seen) lru = i;
+      }
+      if (lru == open.size()) return -1;  // every slot is in view (seen is capped to the slots)
+      const core::Status st = close(lru, sink);
+      if (!st.ok()) return st;
+    }
+    for (const Open& o : open) used[static_cast<size_t>(o.carver)] = true;
+    auto record = store.read_segment(entries[e].segment_id);
+    if (!record.ok()) {
+      entries[e].skip = true;
+      return record.status();
+    }
+    if (record->points_segment.size() > static_cast<size_t>(config.max_segment_points)) {
+      entries[e].skip = true;
+      ++counters.segments_too_big;
+      return -1;
+    }
+    Open o;
+    o.entry = e;
+    o.carver = static_cast<int>(std::find(used.begin(), used.end(), false) - used.begin());
+    o.record = std::move(record.value());
+    const core::Status st = carvers[static_cast<size_t>(o.carver)].set_prior(
+        o.record.points_segment.data(), static_cast<int>(o.record.points_segment.size()));
+    if (!st.ok()) {
+      entries[e].skip = true;
+      return st;
+    }
+    // Its real extent from now on.
+    Eigen::AlignedBox3d box;
+    for (const CloudPoint& p : o.record.points_segment) {
+      box.extend(entries[e].T_prior_segment * Eigen::Vector3d(p.x_m, p.y_m, p.z_m));
+    }
+    if (!box.isEmpty()) entries[e].box_prior = box;
+    ++counters.segments_opened;
+    open.push_back(std::move(o));
+    return static_cast<int>(open.size() - 1);
+  }
+};
+
+core::Expected<PriorMapUpdater> PriorMapUpdater::create(const std::string& prior_dir,
+                                                        const PriorMapUpdaterConfig& config,
+                                                        const hal::PinholeIntrinsics& K) {
+  if (!K.valid()) return core::InvalidArgument("map update: invalid intrinsics");
+  if (config.max_open_segments < 1 || config.max_segment_points < 1 || config.carve_stride_px < 1) {
+    return core::InvalidArgument(
+        "map update: max_open_segments, max_segment_points and carve_stride_px must be >= 1");
+  }
+  if (!(config.reach_m > 0)) {
+    return core::InvalidArgument("map update: reach_m must be positive");
+  }
+  auto store = MapStore::open_existing(prior_dir);
+  if (!store.ok()) return store.status();
+  auto impl = std::make_unique<Impl>(config, K, std::move(store.value()));
+  for (int i = 0; i < config.max_open_segments; ++i) {
+    auto c = FreeSpaceCarver::create(config.carver, config.max_segment_points);
+    if (!c.ok()) return c.status();
+    impl->carvers.push_back(std::move(c.value()));
+  }
+  auto list = impl->store.list_segments();
+  if (!list.ok()) return list.status();
+  for (const SegmentSummary& s : list.value()) {
+    auto seg = impl->store.read_keyframes(s.segment_id);
+    if (!seg.ok()) {
+      HWR_LOG_WARN("map-update", "prior segment %u skipped: %s", s.segment_id,
+                   seg.status().message().c_str());
+      continue;
+    }
+    Impl::Entry e;
+    e.segment_id = s.segment_id;
+    e.T_prior_segment = seg->T_world_segment;
+    for (const StoredKeyframe& kf : seg->keyframes) e.box_prior.extend(kf.T_world_cam.translation());
+    if (e.box_prior.isEmpty()) e.box_prior.extend(seg->T_world_segment.translation());
+    const Eigen::Vector3d reach = Eigen::Vector3d::Constant(config.reach_m);
+    e.box_prior = Eigen::AlignedBox3d(e.box_prior.min() - reach, e.box_prior.max() + reach);
+    impl->entries.push_back(e);
+  }
+  return PriorMapUpdater(std::move(impl));
+}
+
+PriorMapUpdater::PriorMapUpdater(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+PriorMapUpdater::PriorMapUpdater(PriorMapUpdater&&) noexcept = default;
+PriorMapUpdater& PriorMapUpdater::operator=(PriorMapUpdater&&) noexcept = default;
+PriorMapUpdater::~PriorMapUpdater() = default;
+
+const PriorMapUpdaterCounters& PriorMapUpdater::counters() const { return impl_->counters; }
+
+core::Status PriorMapUpdater::observe(const cv::Mat& depth_m, const Eigen::Isometry3d& T_prior_cam,
+                                      UpdatedSegmentSink* sink) {
+  Impl& m = *impl_;
+  if (depth_m.type() != CV_32FC1 || depth_m.cols != m.K.width || depth_m.rows != m.K.height) {
+    return core::InvalidArgument("map update: expected a CV_32FC1 depth image of the camera's size");
+  }
+  ++m.tick;
+  ++m.counters.keyframes;
+  // 1. Prior segments in view, nearest first, at most one per slot.
+  const Eigen::Vector3d c = T_prior_cam.translation();
+  const double view_m = m.config.carver.max_depth_m;
+  m.seen.clear();
+  for (size_t e = 0; e < m.entries.size(); ++e) {
+    if (m.entries[e].skip) continue;
+    const double d = m.entries[e].box_prior.exteriorDistance(c);
+    if (d <= view_m) m.seen.emplace_back(d, e);
+  }
+  std::sort(m.seen.begin(), m.seen.end());
+  if (m.seen.size() > m.carvers.size()) m.seen.resize(m.carvers.size());
+  std::vector<int> in_view;
+  core::Status first_error;
+  for (const auto& [d, e] : m.seen) {
+    auto o = m.open_entry(e, sink);
+    if (!o.ok()) {
+      if (first_error.ok()) first_error = o.status();
+      continue;
+    }
+    if (o.value() < 0) continue;
+    m.open[static_cast<size_t>(o.value())].last_seen = m.tick;
+  }
+  for (size_t i = 0; i < m.open.size(); ++i) {
+    if (m.open[i].last_seen == m.tick) in_view.push_back(static_cast<int>(i));
+  }
+  if (in_view.empty()) {
+    ++m.counters.no_prior_in_view;
+    return first_error;
+  }
+  // 3. Carve every segment in view.
+  for (int i : in_view) {
+    Impl::Open& o = m.open[static_cast<size_t>(i)];
+    const Eigen::Isometry3d T_segment_cam = m.entries[o.entry].T_prior_segment.inverse() * T_prior_cam;
+    auto stats = m.carvers[static_cast<size_t>(o.carver)].observe(depth_m, m.K, T_segment_cam,
+                                                                  m.config.carve_stride_px);
+    if (!stats.ok()) return stats.status();
+    if (stats->misaligned) {
+      ++m.counters.frames_misaligned;
+    } else {
+      ++m.counters.frames_carved;
+    }
+  }
+  return first_error;
+}
+
+core::Status PriorMapUpdater::finish(UpdatedSegmentSink* sink) {
+  core::Status first_error;
+  while (!impl_->open.empty()) {
+    const core::Status st = impl_->close(impl_->open.size() - 1, sink);
+    if (!st.ok() && first_error.ok()) first_error = st;
+  }
+  return first_error;
+}
+
+}  // namespace hwr::recon

@@ -1,0 +1,235 @@
+// PriorMapUpdater on rendered sim lab frames: the prior segment (made from the same place, truth
+// poses) holds a "ghost" plate floating in what the current frames see as free space (a plate that
+// was moved away). With the true poses the update deletes most of it and keeps the static geometry
+// (issue #6 acceptance: point loss on unchanged surfaces <= 1 %); with a relocalization-sized pose
+// error (2 cm, 0.3 deg) it must not erode the static geometry, and with a large one it deletes
+// nothing (the carver's pose check fails closed).
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+#include <opencv2/imgproc.hpp>
+
+#include "sim_frames.hpp"
+#include "temp_dir.hpp"
+#include "hwr/core/arena.hpp"
+#include "hwr/estimation/orb_extractor.hpp"
+#include "hwr/recon/keyframe_cloud.hpp"
+#include "hwr/recon/map_store.hpp"
+#include "hwr/recon/prior_map_updater.hpp"
+#include "hwr/recon/voxel_map.hpp"
+
+namespace hwr::recon {
+namespace {
+
+constexpr double kDeg = 3.14159265358979323846 / 180.0;
+
+struct CurrentFrame {
+  cv::Mat depth_m;
+  Eigen::Isometry3d T_prior_cam_true = Eigen::Isometry3d::Identity();
+};
+
+struct Scene {
+  hwr::testing::TempDir tmp{"hwr_map_update"};
+  std::string prior_dir;
+  hal::PinholeIntrinsics K;
+  std::vector<CurrentFrame> current;
+  Eigen::Isometry3d T_prior_segment = Eigen::Isometry3d::Identity();
+  Eigen::AlignedBox3d ghost_box_segment;  // the ghost plate's points, segment frame (inflated 1 mm)
+  int ghost_points = 0;
+  int static_points_near = 0;  // static prior points within 4 m of a current camera
+};
+
+bool near_a_camera(const Scene& s, const Eigen::Vector3d& p_prior) {
+  for (const CurrentFrame& f : s.current) {
+    if ((f.T_prior_cam_true.translation() - p_prior).norm() < 4.0) return true;
+  }
+  return false;
+}
+
+const Scene& scene() {
+  static const Scene* s = [] {
+    auto* out = new Scene;
+    out->prior_dir = out->tmp.path() + "/prior";
+    SegmentRecord seg;
+    KeyframeCloudConfig cloud_config;
+    std::unique_ptr<core::Arena> arena;
+    auto voxels = VoxelMap::create({0.02, 1'000'000});
+    EXPECT_TRUE(voxels.ok());
+    estimation::FrameFeatures none(1, 1, 1);
+    // The prior: every 12th frame of 41-51 s; the current run: every 24th, half a step later.
+    hwr::testing::for_each_sim_frame(
+        "lab", 1230, 1530, 6,
+        [&](size_t i, const hal::RgbdFrame& f, const Eigen::Isometry3d& T, const hal::PinholeIntrinsics& K) {
+          out->K = K;
+          if (i % 24 == 0) {
+            CurrentFrame c;
+            c.depth_m = f.depth_m.clone();
+            c.T_prior_cam_true = T;
+            out->current.push_back(c);
+          }
+          if (i % 12 != 6) return;
+          if (!arena)
+            arena =
+                std::make_unique<core::Arena>(keyframe_cloud_capacity_bytes(K.width, K.height, cloud_config));
+          if (seg.keyframes.empty()) seg.T_world_segment = T;
+          arena->reset();
+          auto cloud = build_keyframe_cloud(f.bgr, f.depth_m, K, seg.T_world_segment.inverse() * T,
+                                            cloud_config, arena.get());
+          ASSERT_TRUE(cloud.ok());
+          voxels->insert(cloud.value());
+          seg.keyframes.push_back(
+              hwr::testing::stored_keyframe(none, T, static_cast<int32_t>(seg.keyframes.size()), f.t_ns));
+        });
+    voxels->for_each([&](const Voxel& v) {
+      CloudPoint p;
+      p.x_m = v.x_m;
+      p.y_m = v.y_m;
+      p.z_m = v.z_m;
+      seg.points_segment.push_back(p);
+    });
+    out->T_prior_segment = seg.T_world_segment;
+    // The ghost: a 0.16 x 0.16 m plate (1 cm grid) facing a current camera 1.2 m in front of it, where
+    // that camera's centre pixel sees at least 2.5 m deep (free space in front of the surface).
+    for (const CurrentFrame& c : out->current) {
+      const float z = c.depth_m.at<float>(out->K.height / 2, out->K.width / 2);
+      if (!(z > 2.5f)) continue;
+      for (int a = -8; a <= 8; ++a) {
+        for (int b = -8; b <= 8; ++b) {
+          const Eigen::Vector3d p_cam(0.01 * a, 0.01 * b, 1.2);
+          const Eigen::Vector3d p_seg = seg.T_world_segment.inverse() * c.T_prior_cam_true * p_cam;
+          CloudPoint p;
+          p.x_m = static_cast<float>(p_seg.x());
+          p.y_m = static_cast<float>(p_seg.y());
+          p.z_m = static_cast<float>(p_seg.z());
+          seg.points_segment.push_back(p);
+          out->ghost_box_segment.extend(p_seg);
+          ++out->ghost_points;
+        }
+      }
+      break;
+    }
+    EXPECT_GT(out->ghost_points, 0) << "no current view with free space ahead";
+    out->ghost_box_segment =
+        Eigen::AlignedBox3d(out->ghost_box_segment.min() - Eigen::Vector3d::Constant(0.001),
+                            out->ghost_box_segment.max() + Eigen::Vector3d::Constant(0.001));
+    for (const CloudPoint& p : seg.points_segment) {
+      const Eigen::Vector3d q(p.x_m, p.y_m, p.z_m);
+      if (!out->ghost_box_segment.contains(q) && near_a_camera(*out, seg.T_world_segment * q)) {
+        ++out->static_points_near;
+      }
+    }
+    StoreMetadata meta;
+    meta.run_id = "map-update-prior";
+    meta.intrinsics = out->K;
+    auto store = MapStore::open(out->prior_dir, meta);
+    EXPECT_TRUE(store.ok());
+    EXPECT_TRUE(store->write_segment(seg).ok());
+    return out;
+  }();
+  return *s;
+}
+
+struct Collect final : UpdatedSegmentSink {
+  std::vector<SegmentRecord> segments;
+  std::vector<int> versions, deleted;
+  void take_updated(SegmentRecord&& s, int version, int points_deleted) override {
+    segments.push_back(std::move(s));
+    versions.push_back(version);
+    deleted.push_back(points_deleted);
+  }
+};
+
+struct Outcome {
+  int ghost_left = 0, static_left_near = 0;
+  PriorMapUpdaterCounters counters;
+  Collect sink;
+};
+
+// Runs the update over every current frame with T_prior_cam = error * truth.
+void run_update(const Eigen::Isometry3d& error, Outcome* out) {
+  const Scene& s = scene();
+  auto u = PriorMapUpdater::create(s.prior_dir, {}, s.K);
+  ASSERT_TRUE(u.ok()) << u.status().message();
+  for (const CurrentFrame& f : s.current) {
+    ASSERT_TRUE(u->observe(f.depth_m, error * f.T_prior_cam_true, &out->sink).ok());
+  }
+  ASSERT_TRUE(u->finish(&out->sink).ok());
+  out->counters = u->counters();
+  if (out->sink.segments.empty()) {
+    out->ghost_left = s.ghost_points;
+    out->static_left_near = s.static_points_near;
+  } else {
+    ASSERT_EQ(out->sink.segments.size(), 1u);
+    for (const CloudPoint& p : out->sink.segments[0].points_segment) {
+      const Eigen::Vector3d q(p.x_m, p.y_m, p.z_m);
+      if (s.ghost_box_segment.contains(q)) {
+        ++out->ghost_left;
+      } else if (near_a_camera(s, s.T_prior_segment * q)) {
+        ++out->static_left_near;
+      }
+    }
+  }
+  std::printf(
+      "[ update   ] ghost %d -> %d, static near the cameras %d -> %d (%.3f %% lost); keyframes %llu, "
+      "carving views %llu, failed the pose check %llu\n",
+      s.ghost_points, out->ghost_left, s.static_points_near, out->static_left_near,
+      100.0 * (s.static_points_near - out->static_left_near) / s.static_points_near,
+      static_cast<unsigned long long>(out->counters.keyframes),
+      static_cast<unsigned long long>(out->counters.frames_carved),
+      static_cast<unsigned long long>(out->counters.frames_misaligned));
+}
+
+TEST(PriorMapUpdater, GivenAPlateThatIsGoneThenItIsDeletedAndStaticGeometryIsKept) {
+  Outcome o;
+  run_update(Eigen::Isometry3d::Identity(), &o);
+  ASSERT_EQ(o.sink.segments.size(), 1u);
+  EXPECT_EQ(o.sink.versions[0], 1);
+  EXPECT_EQ(o.sink.segments[0].segment_id, 0u);
+  // Measured: 76 % (the plate's rim is seen by fewer rays than min_free_hits needs; views where it
+  // covers too much of a surface cluster fail the pose check, which fails closed).
+  EXPECT_LT(o.ghost_left, scene().ghost_points / 3) << "at least two thirds of the gone plate deleted";
+  EXPECT_GE(o.static_left_near, scene().static_points_near * 0.99) << "static loss <= 1 %";
+  EXPECT_GT(o.counters.frames_carved, 0u);
+}
+
+TEST(PriorMapUpdater, GivenARelocalizationSizedPoseErrorThenStaticGeometryIsNotEroded) {
+  // 2 cm and 0.3 deg: the relocalizer's acceptance limits (issue #6), applied to the whole run.
+  Eigen::Isometry3d error = Eigen::Isometry3d::Identity();
+  error.linear() = Eigen::AngleAxisd(0.3 * kDeg, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  error.translation() = Eigen::Vector3d(0.015, -0.01, 0.008);
+  Outcome o;
+  run_update(error, &o);
+  EXPECT_GE(o.static_left_near, scene().static_points_near * 0.99) << "static loss <= 1 %";
+  EXPECT_EQ(o.counters.keyframes, scene().current.size());
+}
+
+TEST(PriorMapUpdater, GivenALargePoseErrorThenNothingIsDeleted) {
+  Eigen::Isometry3d error = Eigen::Isometry3d::Identity();
+  // 10 cm up: every view holds the floor, whose check sees it. (A translation parallel to every
+  // surface in view is invisible to the check; free_space_carver.hpp, limitations.)
+  error.translation() = Eigen::Vector3d(0.0, 0.0, 0.10);
+  Outcome o;
+  run_update(error, &o);
+  EXPECT_TRUE(o.sink.segments.empty()) << "a frame placed 10 cm off must not carve";
+  EXPECT_EQ(o.counters.frames_carved, 0u);
+  EXPECT_GT(o.counters.frames_misaligned, 0u);
+}
+
+TEST(PriorMapUpdater, GivenBadInputsThenClearErrors) {
+  const Scene& s = scene();
+  auto missing = PriorMapUpdater::create(s.tmp.path() + "/nothing", {}, s.K);
+  ASSERT_FALSE(missing.ok());
+  auto u = PriorMapUpdater::create(s.prior_dir, {}, s.K);
+  ASSERT_TRUE(u.ok());
+  cv::Mat depth16(s.K.height, s.K.width, CV_16UC1, cv::Scalar(1000));
+  const core::Status st = u->observe(depth16, s.current[0].T_prior_cam_true, nullptr);
+  EXPECT_EQ(st.code(), core::ErrorCode::kInvalidArgument);
+  PriorMapUpdaterConfig bad;
+  bad.max_open_segments = 0;
+  EXPECT_FALSE(PriorMapUpdater::create(s.prior_dir, bad, s.K).ok());
+}
+
+}  // namespace
+}  // namespace hwr::recon
