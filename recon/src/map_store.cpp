@@ -108,6 +108,22 @@ void read_pose(core::ConfigMap& m, const char* key, Eigen::Isometry3d* T) {
   }
 }
 
+// Empty when T is a finite rigid transform (rotation orthonormal within 1e-6, determinant +1, last
+// row 0 0 0 1), else what is wrong with it.
+std::string rigid_problem(const Eigen::Isometry3d& T) {
+  if (!T.matrix().allFinite()) return "has a non-finite entry";
+  const Eigen::Matrix3d R = T.linear();
+  const double orthonormality = (R.transpose() * R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff();
+  if (orthonormality > 1e-6) {
+    char buf[96];
+    std::snprintf(buf, sizeof(buf), "is not rigid: |R^T R - I| = %.3g (at most 1e-6)", orthonormality);
+    return buf;
+  }
+  if (R.determinant() < 0) return "is not rigid: det R = -1 (a reflection)";
+  if (T.matrix().row(3) != Eigen::RowVector4d(0, 0, 0, 1)) return "is not rigid: last row is not 0 0 0 1";
+  return "";
+}
+
 // finish() reports type errors as kInvalidArgument; for a file we wrote they mean a malformed file.
 core::Status finish_as_parse_error(const core::ConfigDocument& doc) {
   const core::Status st = doc.finish();
@@ -212,6 +228,8 @@ core::Status validate_metadata(const StoreMetadata& m) {
       }
     }
   }
+  const std::string problem = rigid_problem(m.T_imu_cam);
+  if (!problem.empty()) return core::InvalidArgument("map store: metadata T_imu_cam " + problem);
   return core::Status::Ok();
 }
 
@@ -232,6 +250,7 @@ std::string store_yaml_text(const StoreMetadata& m) {
     s += (i ? ", " : "") + yaml_double(m.intrinsics.distortion[i]);
   }
   s += "]  # k1 k2 p1 p2 k3\n";
+  s += "T_imu_cam: " + yaml_pose(m.T_imu_cam) + "  # camera in the IMU frame, rows of [R | t]\n";
   return s;
 }
 
@@ -268,6 +287,12 @@ core::Expected<StoreMetadata> read_store_yaml(const std::string& path) {
     k.record_error("distortion", "expected 5 numbers (k1 k2 p1 p2 k3), got " + std::to_string(dist.size()));
   } else if (k.has("distortion")) {
     std::copy(dist.begin(), dist.end(), m.intrinsics.distortion.begin());
+  }
+  // Optional: stores written before it existed keep the identity default.
+  if (root.has("T_imu_cam")) {
+    read_pose(root, "T_imu_cam", &m.T_imu_cam);
+    const std::string problem = rigid_problem(m.T_imu_cam);
+    if (!problem.empty()) root.record_error("T_imu_cam", problem);
   }
   HWR_RETURN_IF_ERROR(finish_as_parse_error(*doc));
   return m;

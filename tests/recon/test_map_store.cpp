@@ -103,6 +103,11 @@ StoreMetadata test_metadata() {
   m.intrinsics.cx = 320.1;
   m.intrinsics.cy = 247.6;
   m.intrinsics.distortion = {0.1, -0.25, 1e-3, -2e-4, 1.0 / 3.0};
+  // A camera 10 cm ahead of and 30 cm above the IMU, pitched down 18 deg (the sim's mount):
+  // irrational entries, so a round trip that is not bit-exact shows.
+  m.T_imu_cam.linear() = Eigen::AngleAxisd(0.1 * M_PI, Eigen::Vector3d::UnitY()).toRotationMatrix() *
+                         (Eigen::Matrix3d() << 0, 0, 1, -1, 0, 0, 0, -1, 0).finished();
+  m.T_imu_cam.translation() = Eigen::Vector3d(0.1, 0.0, 0.3);
   return m;
 }
 
@@ -474,11 +479,53 @@ TEST(MapStore, GivenAnExistingStoreWhenReopenedThenItKeepsItsMetadata) {
     EXPECT_TRUE(same_bits(m->intrinsics.cy, first.intrinsics.cy));
     for (size_t i = 0; i < 5; ++i)
       EXPECT_TRUE(same_bits(m->intrinsics.distortion[i], first.intrinsics.distortion[i]));
+    EXPECT_TRUE(same_pose(m->T_imu_cam, first.T_imu_cam));
+    EXPECT_FALSE(same_pose(m->T_imu_cam, Eigen::Isometry3d::Identity()));
   }
   auto list = reopened->list_segments();
   ASSERT_TRUE(list.ok());
   EXPECT_EQ(list->size(), 1u);
   EXPECT_TRUE(reopened->read_segment(0).ok());
+}
+
+// T_imu_cam (relocalization_priors.hpp needs the IMU attitude of each keyframe): a store written
+// before the field existed reads back as identity; a non-rigid one is refused on write and on read.
+TEST(MapStore, GivenAStoreWithoutOrWithABadTImuCamThenIdentityOrAnErrorNamingIt) {
+  TempDir tmp;
+  ASSERT_TRUE(store_with_one_segment(tmp).size() > 0);
+  const std::string yaml = tmp.store() + "/store.yaml";
+  const std::vector<uint8_t> good = read_bytes(yaml);
+  const std::string text(good.begin(), good.end());
+  const size_t line = text.find("T_imu_cam:");
+  ASSERT_NE(line, std::string::npos) << text;
+  const size_t end = text.find('\n', line);
+  ASSERT_NE(end, std::string::npos);
+
+  std::string older = text;
+  older.erase(line, end + 1 - line);
+  write_bytes(yaml, std::vector<uint8_t>(older.begin(), older.end()));
+  auto old_store = MapStore::open_existing(tmp.store());
+  ASSERT_TRUE(old_store.ok()) << old_store.status().to_string();
+  EXPECT_TRUE(same_pose(old_store->metadata().T_imu_cam, Eigen::Isometry3d::Identity()));
+  EXPECT_EQ(old_store->metadata().run_id, test_metadata().run_id);
+
+  // A scaled rotation (2 x identity) and a reflection (diag(1, 1, -1)).
+  for (const char* bad : {"T_imu_cam: [2, 0, 0, 0, 0, 2, 0, 0, 0, 0, 2, 0]",
+                          "T_imu_cam: [1, 0, 0, 0.1, 0, 1, 0, 0, 0, 0, -1, 0.3]"}) {
+    std::string broken = text;
+    broken.replace(line, end - line, bad);
+    write_bytes(yaml, std::vector<uint8_t>(broken.begin(), broken.end()));
+    const core::Status st = MapStore::open_existing(tmp.store()).status();
+    EXPECT_EQ(st.code(), core::ErrorCode::kParseError) << bad << ": " << st.to_string();
+    EXPECT_NE(st.message().find("T_imu_cam"), std::string::npos) << st.message();
+  }
+
+  StoreMetadata reflected = test_metadata();
+  reflected.T_imu_cam.linear().col(2) *= -1.0;
+  const core::Status st = MapStore::open(tmp.path() + "/new_store", reflected).status();
+  EXPECT_EQ(st.code(), core::ErrorCode::kInvalidArgument) << st.to_string();
+  EXPECT_NE(st.message().find("T_imu_cam"), std::string::npos) << st.message();
+  EXPECT_FALSE(fs::exists(tmp.path() + "/new_store/store.yaml"));
 }
 
 TEST(MapStore, GivenATempDirectoryLeftBehindThenOpenRemovesItAndItIsNeverListed) {

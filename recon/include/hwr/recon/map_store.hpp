@@ -35,6 +35,12 @@ struct StoreMetadata {
   std::string run_id;  // e.g. UTC start time "20261124T195600Z"
   hal::PinholeIntrinsics intrinsics;
   int descriptor_bytes = 32;  // ORB
+  // The camera in the IMU frame (the run's extrinsic calibration): relocalization needs the IMU's
+  // attitude at each keyframe to turn its stored magnetometer sample (IMU frame) into a heading
+  // (relocalization_priors.hpp: R_world_imu = (T_world_cam * T_imu_cam^-1).linear()). A store
+  // written before this field existed reads back as identity. Must be rigid (validated on write
+  // and read).
+  Eigen::Isometry3d T_imu_cam = Eigen::Isometry3d::Identity();
 };
 
 struct StoredFeature {
