@@ -40,6 +40,7 @@
 #include "hwr/recon/map_store.hpp"
 #include "hwr/recon/plate_fit.hpp"
 #include "hwr/recon/prior_map.hpp"
+#include "hwr/recon/relocalization_priors.hpp"
 #include "hwr/recon/relocalization_worker.hpp"
 #include "hwr/recon/segment_writer.hpp"
 #if HWR_WITH_SIM
@@ -128,8 +129,18 @@ struct Robot {
   hwr::estimation::PoseEstimator* estimator = nullptr;
   hwr::recon::LocalMapper* mapper = nullptr;
   hwr::recon::SegmentSink* segments = nullptr;
-  hwr::mapio::MapStreamer* streamer = nullptr;        // --link: map chunks and telemetry
-  hwr::recon::RelocalizationWorker* reloc = nullptr;  // --prior-map
+  hwr::recon::SegmentSink* segments_updated = nullptr;  // updated prior segments (--map-out), as they are
+  hwr::mapio::MapStreamer* streamer = nullptr;          // --link: map chunks and telemetry
+  hwr::recon::RelocalizationWorker* reloc = nullptr;    // --prior-map
+  // --prior-map: the magnetometer and GNSS priors of the queries (relocalization_priors.hpp), fed
+  // with the newest tracked camera pose (at most a frame older than the sample).
+  hwr::recon::CurrentSensorPriors* sensor_priors = nullptr;
+  const hwr::recon::PriorSensorFrames* prior_frames = nullptr;
+  Eigen::Isometry3d T_cam_imu = Eigen::Isometry3d::Identity();
+  Eigen::Vector3d antenna_imu_m = Eigen::Vector3d::Zero();
+  Eigen::Isometry3d T_world_cam_last = Eigen::Isometry3d::Identity();
+  bool pose_valid = false;
+  std::string last_priors;  // what the last query's priors held (fill()'s line)
   // The frame every output is expressed in: the run's world until relocalized, then the prior's
   // (T_out_world = T_prior_world).
   Eigen::Isometry3d T_out_world = Eigen::Isometry3d::Identity();
@@ -137,6 +148,8 @@ struct Robot {
   double moved_m = 0;  // path of the newest keyframes so far
   int last_keyframe = -1;
   Eigen::Vector3d last_keyframe_p = Eigen::Vector3d::Zero();
+  int update_offered_upto = -1;  // newest keyframe offered to the map update
+  uint64_t updated_segments = 0, updated_points_deleted = 0, updated_stream_refused = 0;
   hwr::hal::StreamMonitor imu{200.0};
   hwr::hal::StreamMonitor camera{30.0};
   uint64_t mag = 0, gnss = 0, gnss_3d = 0;
@@ -164,12 +177,18 @@ void inertial_task(void* ctx, int64_t now_ns) {
     ++r->mag;
     r->estimator->add_mag(m);
     r->mapper->add_mag(m);  // keyframe metadata for relocalization
+    if (r->sensor_priors != nullptr && r->pose_valid) {
+      r->sensor_priors->add_mag(m, (r->T_world_cam_last * r->T_cam_imu).linear());
+    }
   }
   hwr::hal::GnssFix g;
   while (r->streams->gnss.try_pop(g)) {
     ++r->gnss;
     if (g.has_3d_fix()) ++r->gnss_3d;
     r->mapper->add_gnss(g);
+    if (r->sensor_priors != nullptr && r->pose_valid) {
+      r->sensor_priors->add_gnss(g, r->T_world_cam_last * r->T_cam_imu * r->antenna_imu_m);
+    }
   }
 }
 
@@ -179,6 +198,9 @@ void camera_task(void* ctx, int64_t) {
   while (r->streams->frames.try_pop(f)) {
     r->camera.check(*f);
     const hwr::estimation::TrackResult& tr = r->estimator->process_frame(*f);
+    r->pose_valid = tr.state == hwr::estimation::TrackState::kTracking ||
+                    tr.state == hwr::estimation::TrackState::kRecovered;
+    if (r->pose_valid) r->T_world_cam_last = tr.T_world_cam;
     if (r->streamer != nullptr) {
       r->streamer->post_pose(f->t_ns, r->T_out_world * tr.T_world_cam,
                              tr.state == hwr::estimation::TrackState::kTracking ||
@@ -205,9 +227,54 @@ void relocalization_step(Robot* r) {
   if (r->last_keyframe >= 0) r->moved_m += (p - r->last_keyframe_p).norm();
   r->last_keyframe = newest;
   r->last_keyframe_p = p;
-  if (r->in_prior_frame) return;
+  if (r->in_prior_frame) {
+    // Map update: the keyframes the mapper has settled (keyframe_lag behind the newest), once each.
+    const int settled = newest - r->mapper->config().keyframe_lag;
+    if (r->update_offered_upto < 0) r->update_offered_upto = settled - 1;
+    for (int id = r->update_offered_upto + 1; id <= settled; ++id) {
+      const hwr::estimation::Keyframe* k = kfs.get(id);
+      const cv::Mat* bgr = kfs.bgr(id);
+      const cv::Mat* depth = kfs.depth_m(id);
+      if (k != nullptr && bgr != nullptr && depth != nullptr)
+        r->reloc->offer_keyframe(*bgr, *depth, k->T_world_cam);
+    }
+    r->update_offered_upto = std::max(r->update_offered_upto, settled);
+    return;
+  }
+  if (!r->reloc->wants_query(r->moved_m)) return;
+  // The priors (allocates a line of text, twice a metre of motion at most, until localized).
+  hwr::recon::RelocalizationQuery q;
+  r->last_priors = r->sensor_priors->fill(*r->prior_frames, kf->T_world_cam, &q);
+  hwr::recon::RelocalizationPriors priors;
+  priors.position = q.position;
+  priors.yaw_valid = q.yaw_valid;
+  priors.yaw_prior_rad = q.yaw_prior_rad;
+  priors.yaw_sigma_rad = q.yaw_sigma_rad;
   r->reloc->offer(kf->features, kf->T_world_cam, r->mapper->active_map(), r->mapper->active_T_world_segment(),
-                  r->moved_m, hwr::recon::RelocalizationPriors{});
+                  r->moved_m, priors);
+}
+
+// Prior segments the map update changed: every version to the ground station as it is made, the
+// latest one (end of run) into the map store.
+void take_updated_segments(Robot* r) {
+  hwr::recon::UpdatedSegment u;
+  while (r->reloc->take_updated(&u)) {
+    if (u.final) {
+      // The latest version, at the end of the run: the one the map store keeps.
+      ++r->updated_segments;
+      r->updated_points_deleted += static_cast<uint64_t>(u.points_deleted);
+      if (r->segments_updated != nullptr) r->segments_updated->take(std::move(u.record));
+      continue;
+    }
+    if (r->streamer != nullptr) {
+      const auto& pts = u.record.points_segment;
+      if (!r->streamer->submit(static_cast<int32_t>(u.record.segment_id), u.version, u.record.T_world_segment,
+                               reinterpret_cast<const hwr::mapio::ChunkPoint*>(pts.data()), nullptr,
+                               static_cast<int>(pts.size()), true, 0.0)) {
+        ++r->updated_stream_refused;
+      }
+    }
+  }
 }
 
 void mapping_task(void* ctx, int64_t) {
@@ -218,7 +285,10 @@ void mapping_task(void* ctx, int64_t) {
   }
   // Keyframes settled by the sliding window go into the active local map (docs/reconstruction.md).
   r->mapper->update(r->estimator->tracker().keyframes(), r->segments);
-  if (r->reloc != nullptr) relocalization_step(r);
+  if (r->reloc != nullptr) {
+    relocalization_step(r);
+    take_updated_segments(r);
+  }
 }
 
 // HWR_STATUS for the ground station: per-task scheduler counters and the stream/estimation counters.
@@ -560,6 +630,9 @@ int run(const Args& args) {
   // --prior-map: the earlier run's map, read lazily (docs/relocalization.md); the worker thread
   // relocalizes against it while the robot moves.
   std::unique_ptr<hwr::recon::RelocalizationWorker> reloc;
+  hwr::recon::RelocalizationPriorsConfig priors_cfg;
+  hwr::recon::PriorSensorFrames prior_frames;
+  std::unique_ptr<hwr::recon::CurrentSensorPriors> sensor_priors;
   uint32_t segment_id_offset = 0;
   std::string prior_run_id;
   if (!args.prior_map.empty()) {
@@ -576,6 +649,14 @@ int run(const Args& args) {
     for (const auto& seg : prior->segments())
       segment_id_offset = std::max(segment_id_offset, seg.segment_id + 1);
     prior_run_id = prior->metadata().run_id;
+    priors_cfg.antenna_imu_m = info.gnss_antenna_imu_m;
+    auto frames = hwr::recon::prior_sensor_frames(prior.value(), prior->metadata().T_imu_cam, priors_cfg);
+    if (!frames.ok()) {
+      std::fprintf(stderr, "hwr-robot: --prior-map: %s\n", frames.status().message().c_str());
+      return 1;
+    }
+    prior_frames = std::move(frames.value());
+    std::fprintf(stderr, "hwr-robot: prior map sensors: %s\n", prior_frames.summary.c_str());
     std::fprintf(stderr, "hwr-robot: prior map %s (run %s): %zu segments, %zu keyframes\n",
                  args.prior_map.c_str(), prior_run_id.c_str(), prior->segments().size(),
                  prior->keyframes().size());
@@ -587,6 +668,7 @@ int run(const Args& args) {
       return 2;
     }
     reloc = std::move(w.value());
+    sensor_priors = std::make_unique<hwr::recon::CurrentSensorPriors>(priors_cfg);
   }
   RobotSegmentSink segments;
   segments.keep_world_cloud = !args.cloud_out.empty();
@@ -598,6 +680,7 @@ int run(const Args& args) {
     hwr::recon::StoreMetadata meta;
     meta.run_id = utc_run_id();
     meta.intrinsics = info.intrinsics;
+    meta.T_imu_cam = info.T_imu_cam;
     auto store = hwr::recon::MapStore::open(args.map_out, meta);
     if (!store.ok()) {
       std::fprintf(stderr, "hwr-robot: --map-out: %s\n", store.status().message().c_str());
@@ -649,6 +732,11 @@ int run(const Args& args) {
   sched.set_execution_clock(exec_clock);  // budgets are checked against real work
   robot.streams = &streams;
   robot.reloc = reloc.get();
+  robot.segments_updated = store_writer.get();
+  robot.sensor_priors = sensor_priors.get();
+  robot.prior_frames = &prior_frames;
+  robot.T_cam_imu = info.T_imu_cam.inverse();
+  robot.antenna_imu_m = info.gnss_antenna_imu_m;
   robot.source = source->get();
   robot.scheduler = &sched;
   robot.estimator = estimator.get();
@@ -712,6 +800,11 @@ int run(const Args& args) {
   // The keyframes not yet fused (the lag) go in with their final poses; the last segment closes.
   mapper->finish(estimator->tracker().keyframes(), &segments);
   segments.release_held();
+  if (reloc) {
+    // The map update's queued keyframes and open segments, then its last new versions.
+    reloc->finish();
+    take_updated_segments(&robot);
+  }
   if (store_writer) store_writer->drain();
 
   char table[4096];
@@ -799,6 +892,24 @@ int run(const Args& args) {
             args.prior_map.c_str(), rs.attempts, rs.wall_s_total, robot.moved_m,
             rs.last_message.empty() ? "no attempt" : rs.last_message.c_str());
       }
+      if (rs.localized) {
+        const auto& u = rs.update;
+        std::printf(
+            "map update: %" PRIu64 " keyframes (%" PRIu64 " dropped, %" PRIu64
+            " without prior in view), %" PRIu64 " carving views (%" PRIu64 " failed the pose check), %" PRIu64
+            " prior segments updated, %" PRIu64 " points deleted%s%s\n",
+            u.keyframes, rs.keyframes_dropped, u.no_prior_in_view, u.frames_carved + u.frames_misaligned,
+            u.frames_misaligned, robot.updated_segments, robot.updated_points_deleted,
+            rs.update_error.empty() ? "" : "; error: ", rs.update_error.c_str());
+        if (robot.updated_stream_refused > 0) {
+          std::fprintf(stderr,
+                       "hwr-robot: --link: %" PRIu64 " updated segments not streamed (no batch slot)\n",
+                       robot.updated_stream_refused);
+          rc = 1;
+        }
+      }
+      if (!robot.last_priors.empty())
+        std::printf("relocalization: last query's priors: %s\n", robot.last_priors.c_str());
       if (segments.written_in_run_frame > 0) {
         std::printf("relocalization: %" PRIu64 " segments were written in this run's frame\n",
                     segments.written_in_run_frame);

@@ -16,6 +16,9 @@ struct PriorMapUpdater::Impl {
     Eigen::Isometry3d T_prior_segment = Eigen::Isometry3d::Identity();
     Eigen::AlignedBox3d box_prior;  // its keyframes grown by reach_m, then its cloud once read
     bool skip = false;              // unreadable or too big
+    int version = 0;                // 0: as in the prior store; else the latest version is in `updated`
+    int deleted_total = 0;
+    std::unique_ptr<SegmentRecord> updated;
   };
   // An open segment: its record and the carver over its points (segment frame).
   struct Open {
@@ -43,12 +46,16 @@ struct PriorMapUpdater::Impl {
     auto deleted = carvers[static_cast<size_t>(o.carver)].apply(&o.record.points_segment);
     core::Status st = deleted.status();
     if (deleted.ok() && deleted.value() > 0) {
-      ++counters.segments_updated;
+      Entry& e = entries[o.entry];
+      if (e.version == 0) ++counters.segments_updated;
+      ++e.version;
+      e.deleted_total += deleted.value();
       counters.points_deleted += deleted.value();
       HWR_LOG_INFO("map-update", "prior segment %u: %d of %zu points deleted (observed free), version %d",
                    o.record.segment_id, deleted.value(), o.record.points_segment.size() + deleted.value(),
-                   config.version);
-      if (sink != nullptr) sink->take_updated(std::move(o.record), config.version, deleted.value());
+                   e.version);
+      if (sink != nullptr) sink->take_updated(o.record, e.version, deleted.value(), false);
+      e.updated = std::make_unique<SegmentRecord>(std::move(o.record));
     }
     open.erase(open.begin() + static_cast<ptrdiff_t>(i));
     return st;
@@ -72,7 +79,9 @@ struct PriorMapUpdater::Impl {
       if (!st.ok()) return st;
     }
     for (const Open& o : open) used[static_cast<size_t>(o.carver)] = true;
-    auto record = store.read_segment(entries[e].segment_id);
+    core::Expected<SegmentRecord> record = entries[e].updated
+                                               ? core::Expected<SegmentRecord>(*entries[e].updated)
+                                               : store.read_segment(entries[e].segment_id);
     if (!record.ok()) {
       entries[e].skip = true;
       return record.status();
@@ -139,7 +148,7 @@ core::Expected<PriorMapUpdater> PriorMapUpdater::create(const std::string& prior
     if (e.box_prior.isEmpty()) e.box_prior.extend(seg->T_world_segment.translation());
     const Eigen::Vector3d reach = Eigen::Vector3d::Constant(config.reach_m);
     e.box_prior = Eigen::AlignedBox3d(e.box_prior.min() - reach, e.box_prior.max() + reach);
-    impl->entries.push_back(e);
+    impl->entries.push_back(std::move(e));
   }
   return PriorMapUpdater(std::move(impl));
 }
@@ -209,6 +218,11 @@ core::Status PriorMapUpdater::finish(UpdatedSegmentSink* sink) {
   while (!impl_->open.empty()) {
     const core::Status st = impl_->close(impl_->open.size() - 1, sink);
     if (!st.ok() && first_error.ok()) first_error = st;
+  }
+  if (sink != nullptr) {
+    for (const Impl::Entry& e : impl_->entries) {
+      if (e.updated) sink->take_updated(*e.updated, e.version, e.deleted_total, true);
+    }
   }
   return first_error;
 }

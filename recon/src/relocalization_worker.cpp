@@ -119,11 +119,12 @@ bool RelocalizationWorker::take_updated(UpdatedSegment* out) {
 struct RelocalizationWorker::QueuedSink final : UpdatedSegmentSink {
   RelocalizationWorker* w;
   explicit QueuedSink(RelocalizationWorker* worker) : w(worker) {}
-  void take_updated(SegmentRecord&& segment, int version, int points_deleted) override {
+  void take_updated(const SegmentRecord& segment, int version, int points_deleted, bool final) override {
     UpdatedSegment u;
-    u.record = std::move(segment);
+    u.record = segment;
     u.version = version;
     u.points_deleted = points_deleted;
+    u.final = final;
     std::lock_guard<std::mutex> lock(w->mutex_);
     w->updated_.push_back(std::move(u));
   }

@@ -22,9 +22,13 @@
 //  3. FreeSpaceCarver::observe of every seen open segment with T_segment_cam = T_prior_segment^-1 *
 //     T_prior_cam.
 // Closing a segment (a fourth one is needed, or finish()): FreeSpaceCarver::apply removes the
-// deleted points; a segment that lost points is handed to the sink as a new version (the prior's
-// record with the remaining points: same id, keyframes, junction and T_world_segment, version
-// `version`), for the map store and the ground station (re-streamed as segment_version 1).
+// deleted points; a segment that lost points becomes a new version (the prior's record with the
+// remaining points: same id, keyframes, junction and T_world_segment; versions 1, 2, ... as it is
+// closed again after more carving), handed to the sink for the ground station (re-streamed with
+// that segment_version). The updater keeps every updated segment's latest version in memory (a
+// segment seen again is reopened from it, not from the prior store), and finish() hands each one
+// over once more with `final` set: that one goes to the map store. Memory: the updated segments'
+// points (16 bytes each; ~8 MB per 5x10^5-point segment).
 //
 // Not real time: reads segments, builds Embree BVHs and allocates. It runs on the
 // relocalization worker's thread (relocalization_worker.hpp), never on the control loop.
@@ -64,7 +68,6 @@ struct PriorMapUpdaterConfig {
   int max_open_segments = 3;           // segments held with their carver
   int max_segment_points = 1'000'000;  // carver capacity; a bigger segment is not carved (counted)
   double reach_m = 8.0;  // a segment's points lie within this of its keyframes (KeyframeCloudConfig max)
-  int version = 1;       // of an updated segment (a prior segment is version 0)
 };
 
 struct PriorMapUpdaterCounters {
@@ -80,7 +83,9 @@ struct PriorMapUpdaterCounters {
 class UpdatedSegmentSink {
  public:
   virtual ~UpdatedSegmentSink() = default;
-  virtual void take_updated(SegmentRecord&& segment, int version, int points_deleted) = 0;
+  // points_deleted: by this version (since the previous one). final: finish()'s hand-over of the
+  // latest version (points_deleted is then the total since the prior).
+  virtual void take_updated(const SegmentRecord& segment, int version, int points_deleted, bool final) = 0;
 };
 
 class PriorMapUpdater {

@@ -60,6 +60,7 @@ struct UpdatedSegment {
   SegmentRecord record;  // in its segment frame; record.T_world_segment is in the prior frame
   int version = 1;
   int points_deleted = 0;
+  bool final = false;  // the latest version at the end of the run (for the map store)
 };
 
 // One attempt, for the end-of-run report.
