@@ -4,8 +4,10 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <limits>
 #include <numeric>
+#include <random>
 
 namespace hwr::recon {
 namespace {
@@ -56,6 +58,149 @@ struct Hypothesis {
   NdtResult fine;
   double fine_score = -1;
   bool fine_run = false;
+};
+
+// Step b's index over every prior descriptor: bit-sampling LSH for Hamming space (Indyk & Motwani
+// 1998; the family FLANN's LshIndex uses, Muja & Lowe 2014): `tables` hash tables, each keyed by
+// key_bits descriptor bits drawn once with a fixed seed (votes are repeatable), probed at the query's
+// key and, with multi_probe 1 or 2, at the keys 1 or up to 2 bits away (Lv et al. 2007). Buckets are
+// one sorted array per table (counting sort): building is linear in the descriptors.
+//
+// Voting with near-ties: a current descriptor votes once for every prior keyframe holding a
+// descriptor within tie_bits of the nearest one found (and within max_distance). With
+// nearest-neighbour-only votes a repeated place loses: when one copy's descriptors are a few bits
+// nearer the query (the sim's copy has 3 bits flipped), it takes every vote and the other copy's
+// keyframes are never ranked, matched or scored as rivals.
+class VoteIndex {
+ public:
+  void build(const std::vector<PriorKeyframe>& kfs, const estimation::LshConfig& cfg) {
+    tables_ = cfg.tables;
+    key_bits_ = cfg.key_bits;
+    multi_probe_ = cfg.multi_probe;
+    std::mt19937 rng(0x6d617073);  // fixed: the same prior map gets the same buckets every run
+    bits_.clear();
+    std::vector<int> all_bits(8 * estimation::kOrbDescriptorBytes);
+    std::iota(all_bits.begin(), all_bits.end(), 0);
+    for (int t = 0; t < tables_; ++t) {
+      std::shuffle(all_bits.begin(), all_bits.end(), rng);
+      bits_.insert(bits_.end(), all_bits.begin(), all_bits.begin() + key_bits_);
+    }
+    size_t n = 0;
+    for (const PriorKeyframe& kf : kfs) n += static_cast<size_t>(kf.features.size());
+    n_ = n;
+    desc_.resize(n * estimation::kOrbDescriptorBytes);
+    owner_.resize(n);
+    size_t i = 0;
+    for (size_t k = 0; k < kfs.size(); ++k) {
+      const estimation::FrameFeatures& f = kfs[k].features;
+      for (int j = 0; j < f.size(); ++j, ++i) {
+        std::copy(f.descriptor(j), f.descriptor(j) + estimation::kOrbDescriptorBytes,
+                  &desc_[i * estimation::kOrbDescriptorBytes]);
+        owner_[i] = static_cast<int>(k);
+      }
+    }
+    const size_t buckets = size_t{1} << key_bits_;
+    offsets_.assign(static_cast<size_t>(tables_) * (buckets + 1), 0);
+    ids_.resize(static_cast<size_t>(tables_) * n);
+    keys_.resize(n);
+    for (int t = 0; t < tables_; ++t) {
+      uint32_t* off = &offsets_[static_cast<size_t>(t) * (buckets + 1)];
+      for (size_t d = 0; d < n; ++d) {
+        keys_[d] = key(t, &desc_[d * estimation::kOrbDescriptorBytes]);
+        ++off[keys_[d] + 1];
+      }
+      for (size_t b = 0; b < buckets; ++b) off[b + 1] += off[b];
+      uint32_t* ids = &ids_[static_cast<size_t>(t) * n];
+      for (size_t d = 0; d < n; ++d) ids[off[keys_[d]]++] = static_cast<uint32_t>(d);
+      // The fill advanced each bucket's start to its end: shift back.
+      for (size_t b = buckets; b > 0; --b) off[b] = off[b - 1];
+      off[0] = 0;
+    }
+    seen_.assign(n, 0);
+    keyframe_seen_.assign(kfs.size(), 0);
+    stamp_ = 0;
+    found_.reserve(1024);
+  }
+
+  // Adds the current keyframe's votes to votes[k] for the keyframes with is_candidate[k].
+  void vote(const estimation::FrameFeatures& query, int tie_bits, int max_distance,
+            const std::vector<uint8_t>& is_candidate, std::vector<int>* votes) {
+    for (int qi = 0; qi < query.size(); ++qi) {
+      const uint8_t* q = query.descriptor(qi);
+      if (++stamp_ == 0) {  // wrapped: forget every mark
+        std::fill(seen_.begin(), seen_.end(), 0);
+        std::fill(keyframe_seen_.begin(), keyframe_seen_.end(), 0);
+        stamp_ = 1;
+      }
+      found_.clear();
+      int nearest = std::numeric_limits<int>::max();
+      for (int t = 0; t < tables_; ++t) {
+        const uint32_t k = key(t, q);
+        probe(t, k, q, &nearest);
+        if (multi_probe_ >= 1) {
+          for (int a = 0; a < key_bits_; ++a) {
+            probe(t, k ^ (1u << a), q, &nearest);
+            if (multi_probe_ >= 2) {
+              for (int b = a + 1; b < key_bits_; ++b) probe(t, k ^ (1u << a) ^ (1u << b), q, &nearest);
+            }
+          }
+        }
+      }
+      if (nearest > max_distance) continue;
+      const int limit = std::min(max_distance, nearest + tie_bits);
+      for (const auto& [d, id] : found_) {
+        if (d > limit) continue;
+        const size_t k = static_cast<size_t>(owner_[id]);
+        if (keyframe_seen_[k] == stamp_ || !is_candidate[k]) continue;
+        keyframe_seen_[k] = stamp_;
+        ++(*votes)[k];
+      }
+    }
+  }
+
+ private:
+  uint32_t key(int t, const uint8_t* d) const {
+    const int* b = &bits_[static_cast<size_t>(t) * static_cast<size_t>(key_bits_)];
+    uint32_t k = 0;
+    for (int j = 0; j < key_bits_; ++j) k |= static_cast<uint32_t>((d[b[j] >> 3] >> (b[j] & 7)) & 1u) << j;
+    return k;
+  }
+  void probe(int t, uint32_t k, const uint8_t* q, int* nearest) {
+    const size_t buckets = size_t{1} << key_bits_;
+    const uint32_t* off = &offsets_[static_cast<size_t>(t) * (buckets + 1)];
+    const uint32_t* ids = &ids_[static_cast<size_t>(t) * n_];
+    for (uint32_t i = off[k]; i < off[k + 1]; ++i) {
+      const uint32_t id = ids[i];
+      if (seen_[id] == stamp_) continue;
+      seen_[id] = stamp_;
+      const int d = hamming(q, &desc_[static_cast<size_t>(id) * estimation::kOrbDescriptorBytes]);
+      *nearest = std::min(*nearest, d);
+      found_.emplace_back(d, id);
+    }
+  }
+  static int hamming(const uint8_t* a, const uint8_t* b) {
+    int d = 0;
+    for (int w = 0; w < estimation::kOrbDescriptorBytes / 8; ++w) {
+      uint64_t x = 0, y = 0;
+      std::memcpy(&x, a + 8 * w, 8);
+      std::memcpy(&y, b + 8 * w, 8);
+      d += __builtin_popcountll(x ^ y);
+    }
+    return d;
+  }
+
+  int tables_ = 0, key_bits_ = 0, multi_probe_ = 0;
+  size_t n_ = 0;
+  std::vector<int> bits_;                // tables x key_bits descriptor bit indices
+  std::vector<uint8_t> desc_;            // n x 32
+  std::vector<int> owner_;               // keyframe of each descriptor
+  std::vector<uint32_t> offsets_;        // tables x (2^key_bits + 1)
+  std::vector<uint32_t> ids_;            // tables x n, descriptor indices sorted by bucket
+  std::vector<uint32_t> keys_;           // build scratch
+  std::vector<uint32_t> seen_;           // per descriptor: the stamp of the last query that scored it
+  std::vector<uint32_t> keyframe_seen_;  // per keyframe: the stamp of the last query that voted for it
+  uint32_t stamp_ = 0;
+  std::vector<std::pair<int, uint32_t>> found_;  // (distance, descriptor) of the current query
 };
 
 }  // namespace
@@ -119,7 +264,6 @@ struct Relocalizer::Impl {
         K(k),
         max_features(max_feat),
         current_index(max_feat, c.lsh),
-        prior_matches(static_cast<size_t>(max_feat)),
         ransac(max_feat),
         ndt_coarse(std::move(coarse)),
         ndt_fine(std::move(fine)),
@@ -178,12 +322,10 @@ struct Relocalizer::Impl {
   hal::PinholeIntrinsics K;
   int max_features;
   estimation::LshMatcher current_index;  // the query keyframe's descriptors, per call
-  // Every prior keyframe's descriptors in one LSH index (prepare()), and the keyframe each came from.
-  std::unique_ptr<estimation::LshMatcher> prior_index;
-  std::vector<int> prior_owner;
+  // Every prior keyframe's descriptors in one LSH index (prepare()).
+  VoteIndex prior_index;
   uint64_t indexed_prior = 0;  // PriorMap::instance_id() of the indexed map (0: none)
   size_t indexed_keyframes = 0;
-  std::vector<estimation::FeatureMatch> prior_matches;
   std::vector<int> votes;
   std::vector<uint8_t> is_candidate;
   std::vector<int> selected;
@@ -306,27 +448,9 @@ int Relocalizer::Impl::verify(const Eigen::Isometry3d& T_prior_world, const Relo
 
 void Relocalizer::prepare(const PriorMap& prior) {
   Impl& m = *impl_;
-  const std::vector<PriorKeyframe>& kfs = prior.keyframes();
-  int total = 0;
-  for (const PriorKeyframe& kf : kfs) total += kf.features.size();
-  const hal::PinholeIntrinsics& K = prior.metadata().intrinsics;
-  estimation::FrameFeatures all(std::max(total, 1), K.width, K.height);
-  m.prior_owner.assign(static_cast<size_t>(std::max(total, 1)), 0);
-  for (size_t k = 0; k < kfs.size(); ++k) {
-    for (int i = 0; i < kfs[k].features.size(); ++i) {
-      m.prior_owner[static_cast<size_t>(all.size())] = static_cast<int>(k);
-      all.push_back(kfs[k].features.feature(i), kfs[k].features.descriptor(i));
-    }
-  }
-  // Nearest neighbour only: the same landmark seen from neighbouring keyframes would fail a ratio
-  // test, and each of its copies is as good a vote.
-  estimation::LshConfig lsh = m.config.vote_lsh;
-  lsh.ratio = std::numeric_limits<float>::infinity();
-  lsh.max_distance = m.config.vote_max_distance;
-  m.prior_index = std::make_unique<estimation::LshMatcher>(std::max(total, 1), lsh);
-  m.prior_index->build(all);
+  m.prior_index.build(prior.keyframes(), m.config.vote_lsh);
   m.indexed_prior = prior.instance_id();
-  m.indexed_keyframes = kfs.size();
+  m.indexed_keyframes = prior.keyframes().size();
 }
 
 Relocalizer::Relocalizer(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
@@ -340,10 +464,18 @@ core::Expected<Relocalizer> Relocalizer::create(const RelocalizerConfig& c, cons
   if (!K.valid()) return core::InvalidArgument("relocalizer: invalid intrinsics");
   if (max_features < 1) return core::InvalidArgument("relocalizer: max_features must be >= 1");
   if (c.top_k < 1 || c.keep_best < 1 || c.keep_best > 3 || c.min_orb_inliers < 3 || c.min_votes < 0 ||
-      c.verify_keyframes < 0 || c.yaw_sweep_steps < 0 || c.rival_scan < 0 || c.nms_keyframes < 0) {
+      c.verify_keyframes < 0 || c.yaw_sweep_steps < 0 || c.rival_scan < 0 || c.nms_keyframes < 0 ||
+      c.vote_tie_bits < 0 || c.vote_max_distance < 0) {
     return core::InvalidArgument(
         "relocalizer: top_k >= 1, keep_best in [1, 3], min_orb_inliers >= 3, min_votes >= 0, "
-        "verify_keyframes >= 0, yaw_sweep_steps >= 0, rival_scan >= 0 and nms_keyframes >= 0 required");
+        "verify_keyframes >= 0, yaw_sweep_steps >= 0, rival_scan >= 0, nms_keyframes >= 0, "
+        "vote_tie_bits >= 0 and vote_max_distance >= 0 required");
+  }
+  if (c.vote_lsh.tables < 1 || c.vote_lsh.tables > 16 || c.vote_lsh.key_bits < 1 ||
+      c.vote_lsh.key_bits > 20 || c.vote_lsh.multi_probe < 0 || c.vote_lsh.multi_probe > 2) {
+    return core::InvalidArgument(
+        "relocalizer: vote_lsh needs tables in [1, 16], key_bits in [1, 20] (2^key_bits buckets per table) "
+        "and multi_probe in [0, 2]");
   }
   if (c.max_source_points < 1 || c.max_source_points > c.ndt_coarse.max_source_points ||
       c.max_source_points > c.ndt_fine.max_source_points || c.max_target_points < 1 ||
@@ -445,11 +577,7 @@ RelocalizationResult Relocalizer::relocalize(const RelocalizationQuery& q, Prior
   m.votes.assign(kfs.size(), 0);
   m.is_candidate.assign(kfs.size(), 0);
   for (int c : m.candidates) m.is_candidate[static_cast<size_t>(c)] = 1;
-  const int n_votes = m.prior_index->match(*q.features, m.prior_matches.data(), m.max_features);
-  for (int i = 0; i < n_votes; ++i) {
-    const int k = m.prior_owner[static_cast<size_t>(m.prior_matches[static_cast<size_t>(i)].train)];
-    if (m.is_candidate[static_cast<size_t>(k)]) ++m.votes[static_cast<size_t>(k)];
-  }
+  m.prior_index.vote(*q.features, cfg.vote_tie_bits, cfg.vote_max_distance, m.is_candidate, &m.votes);
   m.ranked.clear();
   for (int c : m.candidates) {
     m.ranked.emplace_back(m.votes[static_cast<size_t>(c)], c);
@@ -612,6 +740,31 @@ RelocalizationResult Relocalizer::relocalize(const RelocalizationQuery& q, Prior
                 "relocalizer: none of " + std::to_string(m.hypotheses.size()) +
                     " hypotheses converged in NDT (" + std::to_string(res.counters.ransac_hypotheses) +
                     " from ORB, " + std::to_string(res.counters.fallback_seeds) + " seeds)");
+  }
+  // Seeds that converged onto a refined pose back it: each refined hypothesis takes, of the ORB seeds
+  // whose coarse NDT ended within dedup of its coarse pose, the one nearest its fine pose (step e's
+  // max_ndt_correction and the verification's seed exclusion then judge that seed). Otherwise the
+  // best coarse score among duplicates would decide, and a RANSAC pose metres off that NDT pulled in
+  // (seen from a keyframe 4 m back in the same bay) would veto the fit that a near seed supports.
+  for (Hypothesis& o : m.hypotheses) {
+    if (!o.fine_run || !o.fine.converged) continue;
+    double best_correction_m = o.from_orb
+                                   ? pose_distance(o.T_seed, o.fine.T_target_source, m.centroid_world).m
+                                   : std::numeric_limits<double>::infinity();
+    for (const Hypothesis& h : m.hypotheses) {
+      if (&h == &o || !h.from_orb || h.coarse_score < 0) continue;
+      const PoseDistance d =
+          pose_distance(o.coarse.T_target_source, h.coarse.T_target_source, m.centroid_world);
+      if (d.m > cfg.dedup_m || d.rad > cfg.dedup_rad) continue;
+      const double correction_m = pose_distance(h.T_seed, o.fine.T_target_source, m.centroid_world).m;
+      if (correction_m < best_correction_m) {
+        best_correction_m = correction_m;
+        o.T_seed = h.T_seed;
+        o.from_orb = true;
+        o.orb_inliers = h.orb_inliers;
+        o.seed_keyframe = h.seed_keyframe;
+      }
+    }
   }
   // The best fine result; the scores of the fine-run ones, best first.
   const Hypothesis* best = nullptr;

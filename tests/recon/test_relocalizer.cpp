@@ -9,7 +9,9 @@
 // and with a position and/or yaw prior; queries from where the prior never was (the prior cut to
 // the walk's first 40 s and the query at a bench it never faced, or frames of the outdoor scenario)
 // and a contradicting yaw prior give "not localized", never a pose, and so does a repetitive region
-// (two copies of the same bay) without a prior, while a position prior picks the right copy; every
+// (two copies of the same bay, 6 m apart with 3 descriptor bits flipped, bit-identical, or 2.5 m
+// apart) without a prior, while a position prior (0.5 m, or 1 m like GNSS) picks the copy it
+// points at, the original or the other one; every
 // accepted fit was compared with at least one rival; the candidate sampling keeps
 // exactly the prior keyframes within 2 d + 3 sigma of the position prior.
 
@@ -212,52 +214,67 @@ constexpr uint32_t kRepeatedFirst = 3, kRepeatedLast = 5;
 constexpr double kRepeatShift_m = 6.0;
 constexpr int kRepeatBitFlips = 3;
 
-// The prior stores, written once: the whole prior run, its first 40 s, and the repeated region.
+// Writes segments kRepeatedFirst..kRepeatedLast and a copy of them shift_m along x (prior frame)
+// whose descriptors have bit_flips random bits flipped each.
+void write_repeated(const std::string& dir, const StoreMetadata& meta, double shift_m, int bit_flips) {
+  auto store = MapStore::open(dir, meta);
+  ASSERT_TRUE(store.ok()) << store.status().message();
+  std::mt19937 rng(6);
+  std::uniform_int_distribution<int> bit(0, 8 * 32 - 1);
+  for (const SegmentRecord& seg : walk().segments) {
+    if (seg.segment_id < kRepeatedFirst || seg.segment_id > kRepeatedLast) continue;
+    EXPECT_TRUE(store->write_segment(seg).ok());
+    SegmentRecord copy = seg;  // the cloud stays in its segment frame; the frame moves
+    copy.segment_id = seg.segment_id + 100;
+    const Eigen::Translation3d shift(shift_m, 0.0, 0.0);
+    copy.T_world_segment = shift * seg.T_world_segment;
+    for (StoredKeyframe& kf : copy.keyframes) {
+      kf.id += 1000;
+      kf.T_world_cam = shift * kf.T_world_cam;
+      for (size_t d = 0; d < kf.descriptors.size(); d += 32) {
+        for (int b = 0; b < bit_flips; ++b) {
+          const int k = bit(rng);
+          kf.descriptors[d + static_cast<size_t>(k / 8)] ^= static_cast<uint8_t>(1u << (k % 8));
+        }
+      }
+    }
+    EXPECT_TRUE(store->write_segment(copy).ok());
+  }
+}
+
+// The prior stores, written once: the whole prior run, its first 40 s, and the repeated regions
+// (the copy kRepeatShift_m away with kRepeatBitFlips flips; bit-identical; 2.5 m away, closer than
+// the ORB verification radius).
 struct PriorStores {
   TempDir tmp;
-  std::string full, partial, repeated;
+  std::string full, partial, repeated, repeated_identical, repeated_near;
 };
+constexpr double kNearShift_m = 2.5;
 const PriorStores& stores() {
   static const PriorStores* s = [] {
     auto* p = new PriorStores;
     const SimWalk& w = walk();
     p->full = p->tmp.path() + "/full";
     p->partial = p->tmp.path() + "/partial";
+    p->repeated = p->tmp.path() + "/repeated";
+    p->repeated_identical = p->tmp.path() + "/repeated_identical";
+    p->repeated_near = p->tmp.path() + "/repeated_near";
     StoreMetadata meta;
     meta.run_id = "lab-prior";
     meta.intrinsics = w.K;
-    p->repeated = p->tmp.path() + "/repeated";
     auto full = MapStore::open(p->full, meta);
     auto partial = MapStore::open(p->partial, meta);
-    auto repeated = MapStore::open(p->repeated, meta);
-    EXPECT_TRUE(full.ok() && partial.ok() && repeated.ok());
-    std::mt19937 rng(6);
-    std::uniform_int_distribution<int> bit(0, 8 * 32 - 1);
+    EXPECT_TRUE(full.ok() && partial.ok());
     for (const SegmentRecord& seg : w.segments) {
       EXPECT_TRUE(full->write_segment(seg).ok());
       const size_t last_frame = kPriorFirst + kPriorStep * static_cast<size_t>(seg.keyframes.back().id);
       if (last_frame < kPartialPriorLast) {
         EXPECT_TRUE(partial->write_segment(seg).ok());
       }
-      if (seg.segment_id >= kRepeatedFirst && seg.segment_id <= kRepeatedLast) {
-        EXPECT_TRUE(repeated->write_segment(seg).ok());
-        SegmentRecord copy = seg;  // the cloud stays in its segment frame; the frame moves
-        copy.segment_id = seg.segment_id + 100;
-        const Eigen::Translation3d shift(kRepeatShift_m, 0.0, 0.0);
-        copy.T_world_segment = shift * seg.T_world_segment;
-        for (StoredKeyframe& kf : copy.keyframes) {
-          kf.id += 1000;
-          kf.T_world_cam = shift * kf.T_world_cam;
-          for (size_t d = 0; d < kf.descriptors.size(); d += 32) {
-            for (int b = 0; b < kRepeatBitFlips; ++b) {
-              const int k = bit(rng);
-              kf.descriptors[d + static_cast<size_t>(k / 8)] ^= static_cast<uint8_t>(1u << (k % 8));
-            }
-          }
-        }
-        EXPECT_TRUE(repeated->write_segment(copy).ok());
-      }
     }
+    write_repeated(p->repeated, meta, kRepeatShift_m, kRepeatBitFlips);
+    write_repeated(p->repeated_identical, meta, kRepeatShift_m, 0);
+    write_repeated(p->repeated_near, meta, kNearShift_m, kRepeatBitFlips);
     return p;
   }();
   return *s;
@@ -507,45 +524,72 @@ TEST(Relocalizer, GivenAQueryFromWhereThePriorNeverWasThenNotLocalized) {
   }
 }
 
-// DISABLED (issue #6 item 2, open): without priors the relocalizer still returns the original bay
-// (margin ~0.66): the copy's keyframes get too few votes for the rival scan to reach them, so no
-// rival from the second copy is evaluated. Run with --gtest_also_run_disabled_tests.
-TEST(Relocalizer,
-     DISABLED_GivenARepetitiveRegionThenAmbiguousWithoutPriorsAndTheRightCopyWithAPositionPrior) {
-  auto prior = PriorMap::open(stores().repeated);
+// Two bays: without a prior neither may be returned (kAmbiguous, after a rival was scored).
+void expect_ambiguous(const char* what, const std::string& store, double shift_m) {
+  auto prior = PriorMap::open(store);
   ASSERT_TRUE(prior.ok()) << prior.status().message();
   ASSERT_EQ(prior->segments().size(), 2u * (kRepeatedLast - kRepeatedFirst + 1));
   Relocalizer reloc = make_relocalizer();
   const Eigen::Isometry3d T_true = known_T_prior_world();
-  const Eigen::Isometry3d T_copy = Eigen::Translation3d(kRepeatShift_m, 0.0, 0.0) * T_true;
+  const Eigen::Isometry3d T_copy = Eigen::Translation3d(shift_m, 0.0, 0.0) * T_true;
   const CurrentRun run = make_current(walk().query_lab, T_true);
-  {
-    // Both bays fit: neither may be returned.
-    const RelocalizationResult r = reloc.relocalize(make_query(run), &prior.value());
-    print_result("repeated bays, no priors", r);
-    if (r.localized) {
-      const Errors e = pose_errors(r.T_prior_world, T_true), c = pose_errors(r.T_prior_world, T_copy);
-      std::printf("[ reloc    ]   error %.2f cm vs the original, %.2f cm vs the copy\n", 100.0 * e.m,
-                  100.0 * c.m);
-    }
-    EXPECT_FALSE(r.localized) << r.message;
-    EXPECT_EQ(r.reason, RelocalizationReason::kAmbiguous) << r.message;
-    EXPECT_GT(r.rivals_evaluated, 0);
+  const RelocalizationResult r = reloc.relocalize(make_query(run), &prior.value());
+  print_result(what, r);
+  if (r.localized) {
+    const Errors e = pose_errors(r.T_prior_world, T_true), c = pose_errors(r.T_prior_world, T_copy);
+    std::printf("[ reloc    ]   error %.2f cm vs the original, %.2f cm vs the copy\n", 100.0 * e.m,
+                100.0 * c.m);
   }
-  {
-    // A position prior (1.5 m sigma would reach both; 0.5 m does not) picks the right bay.
+  EXPECT_FALSE(r.localized) << r.message;
+  EXPECT_EQ(r.reason, RelocalizationReason::kAmbiguous) << r.message;
+  EXPECT_GT(r.rivals_evaluated, 0);
+  EXPECT_LT(r.score_margin, RelocalizerConfig{}.min_score_margin);
+}
+
+TEST(Relocalizer, GivenARepetitiveRegionThenAmbiguousWithoutPriorsAndTheRightCopyWithAPositionPrior) {
+  expect_ambiguous("repeated bays, no priors", stores().repeated, kRepeatShift_m);
+
+  auto prior = PriorMap::open(stores().repeated);
+  ASSERT_TRUE(prior.ok()) << prior.status().message();
+  Relocalizer reloc = make_relocalizer();
+  const Eigen::Isometry3d T_true = known_T_prior_world();
+  const Eigen::Translation3d shift(kRepeatShift_m, 0.0, 0.0);
+  // With a position prior whose gate (3 sigma + 1 m) excludes the other bay, the bay it points at:
+  // the original (whose descriptors are nearer the query's) and the copy (a run started there: the
+  // same frames, their truth shifted; appearance favours the other bay, the prior must win). 1 m
+  // sigma: a GNSS fix.
+  struct Case {
+    const char* name;
+    bool in_copy;
+    double sigma_m;
+  };
+  for (const Case& c : {Case{"repeated bays, prior 0.5 m", false, 0.5},
+                        Case{"repeated bays, GNSS 1 m", false, 1.0}, Case{"copy bay, GNSS 1 m", true, 1.0}}) {
+    const Eigen::Isometry3d T_prior_truth =
+        c.in_copy ? Eigen::Isometry3d(shift) : Eigen::Isometry3d::Identity();
+    const Eigen::Isometry3d T_expected = T_prior_truth * T_true;
+    const CurrentRun run = make_current(walk().query_lab, T_expected, T_prior_truth);
     RelocalizationQuery q = make_query(run);
     q.position.valid = true;
     q.position.p_prior_m = run.T_prior_cam_true.translation() + Eigen::Vector3d(0.4, -0.3, 0.2);
-    q.position.sigma_m = 0.5;
+    q.position.sigma_m = c.sigma_m;
     const RelocalizationResult r = reloc.relocalize(q, &prior.value());
-    print_result("repeated bays, position prior", r);
-    ASSERT_TRUE(r.localized) << r.message;
-    const Errors e = pose_errors(r.T_prior_world, T_true);
+    print_result(c.name, r);
+    ASSERT_TRUE(r.localized) << c.name << ": " << r.message;
+    const Errors e = pose_errors(r.T_prior_world, T_expected);
     std::printf("[ reloc    ]   error %.2f cm, %.3f deg\n", 100.0 * e.m, e.deg);
-    EXPECT_LT(e.m, 0.02);
-    EXPECT_LT(e.deg, 0.3);
+    EXPECT_LT(e.m, 0.02) << c.name;
+    EXPECT_LT(e.deg, 0.3) << c.name;
   }
+}
+
+// Limits of the appearance votes and the rival search: bit-identical copies (nearest-neighbour
+// votes would all go to one of them) and copies closer than verify_radius_m (the rival scan skips
+// keyframes that near the fitted camera) are ambiguous too.
+TEST(Relocalizer, GivenBitIdenticalOrNearbyCopiesThenAmbiguousWithoutPriors) {
+  expect_ambiguous("bit-identical bays", stores().repeated_identical, kRepeatShift_m);
+  ASSERT_LT(kNearShift_m, RelocalizerConfig{}.verify_radius_m);
+  expect_ambiguous("bays 2.5 m apart", stores().repeated_near, kNearShift_m);
 }
 
 TEST(Relocalizer, GivenContradictingPriorsThenNotLocalized) {

@@ -11,19 +11,23 @@
 //  a. Candidates (sample_candidates): with a position prior (a GNSS fix moved into the prior frame),
 //     the prior keyframes within 2 d + k sigma of it horizontally, d the distance moved so far;
 //     without one, every prior keyframe.
-//  b. Appearance: every prior keyframe's ORB descriptors are in one FLANN LSH index
-//     (estimation::LshMatcher, built once per prior map); each current descriptor's nearest prior
-//     descriptor votes for its keyframe, candidates are ranked by votes and the top_k (no two
-//     neighbouring keyframes) go on, each matched with the current keyframe (LSH, ratio test).
+//  b. Appearance: every prior keyframe's ORB descriptors are in one LSH index (bit sampling,
+//     vote_lsh: tables of key_bits bits drawn with a fixed seed, built once per prior map by a
+//     counting sort); each current descriptor votes once for every prior keyframe holding a
+//     descriptor within vote_tie_bits of the nearest one found (near-ties: the copies of a repeated
+//     place all get the vote; nearest-only votes gave the sim's copy, 3 bits further, 4 of the
+//     original's 57). Candidates are ranked by votes and the top_k (no two neighbouring keyframes)
+//     go on, each matched with the current keyframe (estimation::LshMatcher, ratio test).
 //  c. Geometry: per candidate, RANSAC (estimation::PoseRansac) over the candidate's keypoints with
 //     depth (moved to the prior frame) and the current keypoints gives T_prior_cam, hence
 //     T_prior_world = T_prior_cam * T_world_cam^-1. With a yaw prior, hypotheses whose relative yaw
 //     differs by more than yaw_gate_sigmas sigma + yaw_gate_margin_rad are rejected. Hypotheses
-//     within dedup_m / dedup_rad of a better one are merged. When no candidate gives one (the
-//     paper's method), NDT is seeded with the candidates' keyframe poses ("the initial parameters are
-//     set to the pose of the current key frame"), rotated by the yaw prior when there is one. A
-//     position prior adds seeds of its own: with a yaw prior one (the paper's GNSS + magnetometer
-//     case), without one a sweep of yaw_sweep_steps yaws when ORB gave nothing.
+//     within dedup_m / dedup_rad of a better one are merged. A refined pose is backed by the ORB seed
+//     nearest it among those whose coarse NDT ended on it (step e judges that seed). When no candidate gives
+//     one (the paper's method), NDT is seeded with the candidates' keyframe poses ("the initial parameters
+//     are set to the pose of the current key frame"), rotated by the yaw prior when there is one. A position
+//     prior adds seeds of its own: with a yaw prior one (the paper's GNSS + magnetometer case), without one a
+//     sweep of yaw_sweep_steps yaws when ORB gave nothing.
 //  d. NDT (recon::NdtAligner, Magnusson 2009) of the current local cloud, moved by each hypothesis,
 //     against the prior points around it (PriorMap::points_near: the cloud's extent + target_margin_m
 //     about its moved centroid), coarse to fine over ndt_coarse.resolutions_m. The keep_best (3)
@@ -44,22 +48,30 @@
 //     NDT from the best turned 180 deg about the vertical through the local map's centroid, and
 //     from the first RANSAC pose distinct from the fit among the next rival_scan ranked candidates
 //     with a vote, away (> verify_radius_m) from the fitted camera (a repeated place: the second
-//     vote cluster; limitation: copies closer than verify_radius_m are not searched), else from the
-//     best-voted candidate keyframe's pose away from the fit. When no rival gave a pose the priors allow, the
-//     margin is unknown: rejected (kAmbiguous, fail closed) unless both a position and a yaw prior pin the
-//     pose. With priors, fits that contradict them are not chosen while one that agrees exists. Otherwise the
-//     result says "not localized" with a reason, and the caller tries again after more motion. Limitation:
-//     prior places whose descriptors are bit-identical copies give all their votes to one copy
-//     (nearest-neighbour ties), so the second cluster is found only through the hypotheses and the keyframe
-//     seed.
+//     vote cluster), else from the best-voted candidate keyframe's pose away from the fit. A
+//     repeated place is found mainly through the hypotheses: with near-tie votes its copies' keyframes
+//     reach the top_k, RANSAC puts a hypothesis on each copy and the keep_best refinement scores them
+//     against each other (copies closer than verify_radius_m too, which the scan skips). Measured
+//     (tests/recon/test_relocalizer.cpp, sim lab, three segments and a copy 6 m along x): margin
+//     -0.02 (fine 0.02-0.03), kAmbiguous, with the copy's descriptors 3 bits off, bit-identical, or
+//     2.5 m away; a position prior of 0.5 or 1 m sigma (gate 3 sigma + 1 m < 6 m) picks the bay it
+//     points at (1.5 / 0.6 cm), the original or the copy. When no rival gave a pose the priors allow,
+//     the margin is unknown: rejected (kAmbiguous, fail closed) unless both a position and a yaw prior
+//     pin the pose. With priors, fits that contradict them are not chosen while one that agrees exists.
+//     Otherwise the result says "not localized" with a reason, and the caller tries again after more
+//     motion. Limitations: at most top_k (8) candidates and keep_best (3) refined poses: more copies
+//     of one place than that are not all scored, but one rival suffices for kAmbiguous; a copy whose
+//     descriptors differ from the query's by more than vote_tie_bits beyond the other copy's gets
+//     nearest-only votes (few) and is found only by the rival scan.
 //
 // Scores: NDT's score of eq. 6.9 summed over the (same, subsampled) source cloud, divided by its
 // point count, so hypotheses are compared on the same cloud at the same resolution.
 //
 // Memory: create() sizes the current-keyframe matcher, RANSAC, the match and correspondence
 // buffers, the source buffer (max_source_points) and both NDT aligners. relocalize() runs off the
-// control loop and allocates: the prior LSH index (prepare(), once per prior map, ~100 bytes per
-// prior feature), the current keyframe's LSH tables (FLANN allocates them on every build), the
+// control loop and allocates: the prior LSH index (prepare(), once per prior map: a copy of the
+// descriptors, 4 bytes per feature and table, 2^key_bits + 1 offsets per table; 6.3 MB for the lab's
+// 158k features), the current keyframe's LSH tables (FLANN allocates them on every build), the
 // per-prior-keyframe vote and position tables (first call), the prior target cloud (grows to the
 // largest points_near answer, then reused), the prior map's cloud loads and the result's message.
 
@@ -99,9 +111,10 @@ struct RelocalizerConfig {
   // a. candidates
   double candidate_sigma_factor = 3.0;
   // b. appearance. vote_lsh: the index over every prior descriptor, small and coarse (4 tables of
-  // 16-bit keys, no multi-probe: a vote needs no high recall, and the default's 12 x 20-bit,
-  // 2-probe index took 1.5 s to build and 1 s to query over the lab's 158k prior descriptors);
-  // lsh: the current keyframe's 800, matched with each selected candidate.
+  // 16-bit keys, no multi-probe: a vote needs no high recall; FLANN's 12 x 20-bit, 2-probe index took
+  // 1.5 s to build and 1 s to query over the lab's 158k prior descriptors). Only tables (1-16),
+  // key_bits (1-20) and multi_probe (0-2) are used; the distances are vote_max_distance and
+  // vote_tie_bits. lsh: the current keyframe's 800, matched with each selected candidate.
   estimation::LshConfig vote_lsh = [] {
     estimation::LshConfig c;
     c.tables = 4;
@@ -111,9 +124,12 @@ struct RelocalizerConfig {
   }();
   estimation::LshConfig lsh;
   int vote_max_distance = 50;  // Hamming distance of a vote (nearest prior descriptor)
-  int min_votes = 15;          // fewer: the candidate does not go to RANSAC
-  int top_k = 8;               // candidates that go on to RANSAC (and fallback seeds)
-  int nms_keyframes = 1;       // ... no two within this many keyframe indices of each other
+  // A current descriptor votes for every prior keyframe holding a descriptor within this many bits
+  // of the nearest one (near-ties: a repeated place's copies all get the vote); 0: nearest only.
+  int vote_tie_bits = 8;
+  int min_votes = 15;     // fewer: the candidate does not go to RANSAC
+  int top_k = 8;          // candidates that go on to RANSAC (and fallback seeds)
+  int nms_keyframes = 1;  // ... no two within this many keyframe indices of each other
   // e. the second vote cluster: at most this many further ranked candidates (any vote, more than
   // verify_radius_m from the fitted camera) are matched and RANSAC'd looking for a rival pose.
   int rival_scan = 8;
@@ -247,8 +263,8 @@ class Relocalizer {
   RelocalizationResult relocalize(const RelocalizationQuery& query, PriorMap* prior);
   // Builds the LSH index over every prior keyframe's descriptors (step b). relocalize() calls it
   // when given a prior map other than the one indexed (PriorMap::instance_id()); calling
-  // it after PriorMap::open keeps that time out of the first attempt. Allocates (FLANN tables and a
-  // copy of the descriptors: ~ 100 bytes per prior feature).
+  // it after PriorMap::open keeps that time out of the first attempt (10-30 ms for the lab's 158k
+  // prior features; FLANN's index took 0.2-0.4 s). Allocates (see Memory above).
   void prepare(const PriorMap& prior);
 
   const RelocalizerConfig& config() const;
