@@ -25,12 +25,12 @@ cmake --build --preset host-release --target hwr-sim hwr-robot hwr-ground hwr-ev
 bin=build/host-release/apps
 
 echo
-echo "== 1/4 simulator: the lab welding workshop with exact ground truth =="
+echo "== 1/5 simulator: the lab welding workshop with exact ground truth =="
 rm -rf "$out/sim-lab"
 "$bin/hwr-sim/hwr-sim" --scenario lab --out "$out/sim-lab" --threads 2 "${duration[@]}"
 
 echo
-echo "== 2/4 robot and ground station: pose estimation, local maps, the map store, and the map"
+echo "== 2/5 robot and ground station: pose estimation, local maps, the map store, and the map"
 echo "       streamed as Draco chunks over LCM to hwr-ground =="
 rm -rf "$out/map-store" "$out/ground"
 # Both programs in one function, run inside a private network namespace when possible.
@@ -63,14 +63,20 @@ else
 fi
 
 echo
-echo "== 3/4 evaluation: the estimated trajectory against the simulator's ground truth =="
+echo "== 3/5 evaluation: the estimated trajectory against the simulator's ground truth =="
 "$bin/hwr-eval/hwr-eval" ate "$out/sim-lab/groundtruth.txt" "$out/trajectory.txt" | tee "$out/ate.txt"
 
 echo
-echo "== 4/4 evaluation: welding plates fitted in the map against the simulator's ground truth =="
+echo "== 4/5 evaluation: welding plates fitted in the map against the simulator's ground truth =="
 "$bin/hwr-eval/hwr-eval" ae --groundtruth "$out/sim-lab/weld_groundtruth.yaml" --cloud "$out/map-cloud.bin" \
   --align "$out/sim-lab/groundtruth.txt" "$out/trajectory.txt" | tee "$out/ae.txt"
 
+echo
+echo "== 5/5 second visit: the lab later (a plate moved, a box removed), started elsewhere; the robot"
+echo "       relocalizes against the map store of step 2 while it moves, then continues in its frame =="
+rm -rf "$out/revisit-store"
+"$bin/hwr-robot/hwr-robot" --source sim:scenarios/lab_revisit_short.yaml --quiet --prior-map "$out/map-store" \
+  --map-out "$out/revisit-store" --traj-out "$out/revisit-trajectory.txt" | tee "$out/revisit-telemetry.txt"
 
 cat <<MSG
 
@@ -99,6 +105,10 @@ demo outputs:
       (docs/mapio.md); $out/ground-summary.txt and ground-log.txt: its report and status lines
   $out/ae.txt
       welding-plate reconstruction error (AE) of that map (docs/reconstruction.md)
+  $out/revisit-telemetry.txt, $out/revisit-trajectory.txt, $out/revisit-store/
+      the second visit: where it relocalized (T_prior_world, attempts, time), its trajectory and
+      segments in the first run's frame, relocalization.yaml, and updated first-run segments
+      (docs/relocalization.md, docs/prior_map_update.md)
 
 welding-region detection is the next stage (docs/architecture.md).
 MSG

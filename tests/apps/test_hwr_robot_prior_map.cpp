@@ -26,17 +26,9 @@ const std::string kTeddy = HWR_DATA_DIR "/tum-fr3-teddy-200/rgbd_dataset_freibur
 
 using hwr::testing::run_cli;
 
-// The second visit: the lab later (lab-revisit: a plate moved, a box removed, another seed), starting
-// 1.7 m from where the first run started, facing another way, walking to the first run's first joint.
-constexpr const char* kRevisitYaml = R"(base: lab-revisit
-name: lab-revisit-short
-duration_s: 14
-trajectory:
-  waypoints:
-    - {xy_m: [-7.6, -1.6], dwell_s: 2.0}
-    - {xy_m: [-6.0, -3.1], dwell_s: 3.0, look_at_xy_m: [-6.0, -4.5]}
-    - {xy_m: [-4.4, -2.7]}
-)";
+// The second visit (scenarios/lab_revisit_short.yaml): the lab later, starting 1.7 m from where the
+// first run started, facing another way, walking to the first run's first joint.
+const std::string kRevisit = HWR_SOURCE_DIR "/scenarios/lab_revisit_short.yaml";
 
 struct TempDir {
   std::string path = ::testing::TempDir() + "hwr_robot_prior_" + std::to_string(::getpid());
@@ -106,8 +98,7 @@ TEST(HwrRobotPriorMap, GivenASecondVisitStartedElsewhereThenItRelocalizesAndCont
   const size_t prior_segments = segment_dirs(prior).size();
   ASSERT_GE(prior_segments, 1u);
 
-  const std::string yaml = tmp.path + "/revisit.yaml";
-  std::ofstream(yaml) << kRevisitYaml;
+  const std::string& yaml = kRevisit;
   const auto second =
       run_cli(kRobot, "--source sim:" + yaml + " --quiet --prior-map " + prior + " --map-out " + current +
                           " --traj-out " + tmp.path + "/traj.txt --gt-out " + tmp.path + "/gt.txt");
