@@ -3,6 +3,8 @@
 //   hwr-eval rpe GT EST [--delta N] [--delta-unit s|f] [--offset S]
 //   hwr-eval ae --groundtruth RUN/weld_groundtruth.yaml --cloud FILE [--voxel M] [--align GT EST]
 //               [--margin M]
+//   hwr-eval map-update --prior P --updated D --groundtruth WELD_YAML --moved NAME[,NAME]
+//   (map_update_eval.cpp)
 // ate/rpe: trajectories (TUM files). ae: welding-plate reconstruction error of a map cloud (the
 // cloud file format of recon/plate_fit.hpp) against the simulator's plate ground truth; --voxel
 // says the cloud holds voxel means of a grid of that side in the cloud's frame (recon::VoxelMap),
@@ -20,6 +22,7 @@
 #include "hwr/core/tum_trajectory.hpp"
 #include "hwr/estimation/trajectory_metrics.hpp"
 #include "hwr/recon/plate_fit.hpp"
+#include "map_update_eval.hpp"
 
 namespace {
 
@@ -32,6 +35,8 @@ int usage(const char* msg) {
       "usage: hwr-eval ate GT EST [--max-dt S] [--sim3] [--offset S]\n"
       "       hwr-eval rpe GT EST [--delta N] [--delta-unit s|f] [--offset S]\n"
       "       hwr-eval ae --groundtruth WELD_YAML --cloud FILE [--voxel M] [--align GT EST] [--margin M]\n"
+      "       hwr-eval map-update --prior P --updated D --groundtruth WELD_YAML --moved NAME[,NAME] "
+      "[--margin M]\n"
       "GT and EST are TUM trajectory files (timestamp tx ty tz qx qy qz qw); FILE is a cloud of\n"
       "16-byte little-endian records (x y z float32 metres, r g b flags bytes).\n");
   return 2;
@@ -191,6 +196,7 @@ int main(int argc, char** argv) {
     return usage(nullptr);
   const std::string cmd = argv[1];
   if (cmd == "ae") return run_ae(argc, argv);
+  if (cmd == "map-update") return hwr_eval::run_map_update(argc, argv);
   if (cmd != "ate" && cmd != "rpe") return usage(("unknown command '" + cmd + "'").c_str());
 
   std::vector<std::string> positional;

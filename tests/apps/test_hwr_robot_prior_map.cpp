@@ -128,6 +128,17 @@ TEST(HwrRobotPriorMap, GivenASecondVisitStartedElsewhereThenItRelocalizesAndCont
   EXPECT_NE(reloc.find("localized: true"), std::string::npos) << reloc;
   EXPECT_NE(reloc.find("first_segment_id: " + std::to_string(prior_segments)), std::string::npos) << reloc;
   EXPECT_NE(reloc.find("T_prior_world:"), std::string::npos) << reloc;
+
+  // The map update: what it deleted from the first run's segments, against its plate ground truth
+  // (fillet_n3 moved between the runs; it is far from this short walk).
+  const auto eval = run_cli(HWR_BINARY_DIR "/apps/hwr-eval/hwr-eval",
+                            "map-update --prior " + prior + " --updated " + current + " --groundtruth " +
+                                tmp.path + "/cal_lab/weld_groundtruth.yaml --moved fillet_n3");
+  ASSERT_EQ(eval.exit_code, 0) << eval.out;
+  const size_t at = eval.out.find("elsewhere_deleted_pct=");
+  ASSERT_NE(at, std::string::npos) << eval.out;
+  EXPECT_LE(std::stod(eval.out.substr(at + 22)), 1.0) << "static loss <= 1 %: " << eval.out;
+  std::printf("[ prior    ] %s", eval.out.substr(eval.out.find("map update:")).c_str());
 }
 
 TEST(HwrRobotPriorMap, GivenARunOutsideThePriorsAreaThenNotLocalizedAndItsOwnFrameIsKept) {
