@@ -242,7 +242,9 @@ void relocalization_step(Robot* r) {
     return;
   }
   if (!r->reloc->wants_query(r->moved_m)) return;
-  // The priors (allocates a line of text, twice a metre of motion at most, until localized).
+  // The priors, twice a metre of motion at most, until localized. Not allocation-free: fill() fits
+  // the current run's GNSS track (up to gnss_capacity fixes) and computes its heading (a few ms), and
+  // returns a line of text.
   hwr::recon::RelocalizationQuery q;
   r->last_priors = r->sensor_priors->fill(*r->prior_frames, kf->T_world_cam, &q);
   hwr::recon::RelocalizationPriors priors;
@@ -649,8 +651,19 @@ int run(const Args& args) {
     for (const auto& seg : prior->segments())
       segment_id_offset = std::max(segment_id_offset, seg.segment_id + 1);
     prior_run_id = prior->metadata().run_id;
+    // The same robot on both visits: this run's antenna and magnetometer calibration.
     priors_cfg.antenna_imu_m = info.gnss_antenna_imu_m;
-    auto frames = hwr::recon::prior_sensor_frames(prior.value(), prior->metadata().T_imu_cam, priors_cfg);
+    priors_cfg.mag.hard_iron_imu_uT = info.mag_hard_iron_uT;
+    Eigen::Isometry3d prior_T_imu_cam = prior->metadata().T_imu_cam;
+    if (!prior->metadata().T_imu_cam_recorded) {
+      prior_T_imu_cam = info.T_imu_cam;
+      std::fprintf(
+          stderr,
+          "hwr-robot: --prior-map: %s does not record T_imu_cam (written before it did); this run's is "
+          "used for its magnetometer heading\n",
+          args.prior_map.c_str());
+    }
+    auto frames = hwr::recon::prior_sensor_frames(prior.value(), prior_T_imu_cam, priors_cfg);
     if (!frames.ok()) {
       std::fprintf(stderr, "hwr-robot: --prior-map: %s\n", frames.status().message().c_str());
       return 1;

@@ -290,6 +290,7 @@ core::Expected<StoreMetadata> read_store_yaml(const std::string& path) {
   }
   // Optional: stores written before it existed keep the identity default.
   if (root.has("T_imu_cam")) {
+    m.T_imu_cam_recorded = true;
     read_pose(root, "T_imu_cam", &m.T_imu_cam);
     const std::string problem = rigid_problem(m.T_imu_cam);
     if (!problem.empty()) root.record_error("T_imu_cam", problem);

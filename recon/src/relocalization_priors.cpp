@@ -227,7 +227,9 @@ std::string CurrentSensorPriors::fill(const PriorSensorFrames& prior, const Eige
       p_enu_.push_back(core::geodetic_to_enu(f.geodetic, prior.origin));
     }
     const Eigen::Isometry3d T_prior_enu = prior.enu.T_enu_world.inverse();
-    const double rms_prior = std::max(prior.enu.rms_horizontal_m, prior.enu.horizontal_sigma_m);
+    // The prior's placement: its residual, and a GNSS bias correlated over the prior's track that the
+    // residuals cannot show (up to sigma_h; averaging over its fixes would be over-confident).
+    const double rms_prior = std::hypot(prior.enu.rms_horizontal_m, config_.sigma_h_m);
     // The prior's yaw uncertainty, levered by the distance from its track's centroid.
     double prior_lever = 0;
     auto finish_sigma = [&](const Eigen::Vector3d& p_prior_m, double extra2) {

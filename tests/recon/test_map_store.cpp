@@ -481,6 +481,7 @@ TEST(MapStore, GivenAnExistingStoreWhenReopenedThenItKeepsItsMetadata) {
       EXPECT_TRUE(same_bits(m->intrinsics.distortion[i], first.intrinsics.distortion[i]));
     EXPECT_TRUE(same_pose(m->T_imu_cam, first.T_imu_cam));
     EXPECT_FALSE(same_pose(m->T_imu_cam, Eigen::Isometry3d::Identity()));
+    EXPECT_TRUE(m->T_imu_cam_recorded);
   }
   auto list = reopened->list_segments();
   ASSERT_TRUE(list.ok());
@@ -507,6 +508,7 @@ TEST(MapStore, GivenAStoreWithoutOrWithABadTImuCamThenIdentityOrAnErrorNamingIt)
   auto old_store = MapStore::open_existing(tmp.store());
   ASSERT_TRUE(old_store.ok()) << old_store.status().to_string();
   EXPECT_TRUE(same_pose(old_store->metadata().T_imu_cam, Eigen::Isometry3d::Identity()));
+  EXPECT_FALSE(old_store->metadata().T_imu_cam_recorded) << "an older store: identity is not a calibration";
   EXPECT_EQ(old_store->metadata().run_id, test_metadata().run_id);
 
   // A scaled rotation (2 x identity) and a reflection (diag(1, 1, -1)).

@@ -87,6 +87,7 @@ core::Expected<SimLiveLog> open_sim_live_log(const ScenarioSpec& spec, double du
   log.info.intrinsics = calib.intrinsics;
   log.info.T_imu_cam = calib.T_imu_cam;
   log.info.gnss_antenna_imu_m = calib.gnss_antenna_imu_m;
+  log.info.mag_hard_iron_uT = calib.mag_hard_iron_uT;
   log.info.camera_rate_hz = calib.camera_rate_hz;
   log.info.imu_rate_hz = calib.imu_rate_hz;
   log.info.stereo = calib.stereo;

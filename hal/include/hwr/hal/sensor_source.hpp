@@ -21,6 +21,7 @@ struct SourceInfo {
   PinholeIntrinsics intrinsics;
   Eigen::Isometry3d T_imu_cam = Eigen::Isometry3d::Identity();
   Eigen::Vector3d gnss_antenna_imu_m = Eigen::Vector3d::Zero();  // the GNSS antenna in the IMU frame
+  Eigen::Vector3d mag_hard_iron_uT = Eigen::Vector3d::Zero();    // magnetometer offset, sensor frame
   bool has_imu = false;  // gyro + accelerometer (TUM has accelerometer only: has_imu false)
   bool has_mag = false;
   bool has_gnss = false;

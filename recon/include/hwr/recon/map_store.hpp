@@ -41,6 +41,9 @@ struct StoreMetadata {
   // written before this field existed reads back as identity. Must be rigid (validated on write
   // and read).
   Eigen::Isometry3d T_imu_cam = Eigen::Isometry3d::Identity();
+  // Read back: whether store.yaml held T_imu_cam (false for older stores: the identity above is then
+  // not a calibration, and a reader should use its own robot's or refuse the magnetometer heading).
+  bool T_imu_cam_recorded = false;
 };
 
 struct StoredFeature {
