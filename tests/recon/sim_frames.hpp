@@ -4,6 +4,7 @@
 #include <cstddef>
 #include <functional>
 #include <string>
+#include <vector>
 
 #include <Eigen/Geometry>
 #include <gtest/gtest.h>
@@ -11,6 +12,7 @@
 #include "hwr/estimation/frame_features.hpp"
 #include "hwr/hal/rgbd_frame.hpp"
 #include "hwr/recon/map_store.hpp"
+#include "hwr/recon/voxel_map.hpp"
 #include "hwr/sim/scenario.hpp"
 #include "hwr/sim/sim_live_log.hpp"
 
@@ -50,6 +52,17 @@ inline recon::StoredKeyframe stored_keyframe(const estimation::FrameFeatures& fe
     s.descriptors.insert(s.descriptors.end(), features.descriptor(k), features.descriptor(k) + 32);
   }
   return s;
+}
+
+// The voxel means of `map` appended to `out` as points (colour and flags zero).
+inline void append_voxel_points(const recon::VoxelMap& map, std::vector<recon::CloudPoint>* out) {
+  map.for_each([&](const recon::Voxel& v) {
+    recon::CloudPoint p;
+    p.x_m = v.x_m;
+    p.y_m = v.y_m;
+    p.z_m = v.z_m;
+    out->push_back(p);
+  });
 }
 
 }  // namespace hwr::testing

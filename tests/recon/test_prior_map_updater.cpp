@@ -83,13 +83,7 @@ const Scene& scene() {
           seg.keyframes.push_back(
               hwr::testing::stored_keyframe(none, T, static_cast<int32_t>(seg.keyframes.size()), f.t_ns));
         });
-    voxels->for_each([&](const Voxel& v) {
-      CloudPoint p;
-      p.x_m = v.x_m;
-      p.y_m = v.y_m;
-      p.z_m = v.z_m;
-      seg.points_segment.push_back(p);
-    });
+    hwr::testing::append_voxel_points(voxels.value(), &seg.points_segment);
     out->T_prior_segment = seg.T_world_segment;
     // The ghost: a 0.16 x 0.16 m plate (1 cm grid) facing a current camera 1.2 m in front of it, where
     // that camera's centre pixel sees at least 2.5 m deep (free space in front of the surface).

@@ -95,13 +95,7 @@ void render(const std::string& scenario, size_t first, size_t last, size_t step,
         }
       });
   if (store != nullptr) {
-    voxels->for_each([&](const Voxel& v) {
-      CloudPoint p;
-      p.x_m = v.x_m;
-      p.y_m = v.y_m;
-      p.z_m = v.z_m;
-      seg.points_segment.push_back(p);
-    });
+    hwr::testing::append_voxel_points(voxels.value(), &seg.points_segment);
     ASSERT_TRUE(store->write_segment(seg).ok());
   }
 }
