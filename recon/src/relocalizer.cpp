@@ -9,6 +9,8 @@
 #include <numeric>
 #include <random>
 
+#include "hwr/estimation/descriptor.hpp"
+
 namespace hwr::recon {
 namespace {
 
@@ -53,6 +55,7 @@ struct Hypothesis {
   bool from_orb = false;
   int orb_inliers = 0;
   int seed_keyframe = -1;  // the prior keyframe whose features (ORB) or pose seeded it; -1: none
+  int orb_keyframe = -1;   // the prior keyframe whose RANSAC made T_seed (never reassigned); -1: none
   NdtResult coarse;
   double coarse_score = -1;  // per source point; -1: not converged
   NdtResult fine;
@@ -71,18 +74,31 @@ struct Hypothesis {
 // nearest-neighbour-only votes a repeated place loses: when one copy's descriptors are a few bits
 // nearer the query (the sim's copy has 3 bits flipped), it takes every vote and the other copy's
 // keyframes are never ranked, matched or scored as rivals.
+//
+// Votes are many-to-one: a prior descriptor near several query descriptors adds to its keyframe once
+// per such query descriptor (a keyframe gets at most one vote per query descriptor). Counting each
+// prior descriptor once would need a matching (its best query), and repeated texture in the query
+// (the same corner seen at two octaves) is repeated in the place's prior keyframes too; the votes
+// only rank candidates for RANSAC, which then uses one-to-one ratio-tested matches.
+//
+// Not FLANN's LshIndex (review item 8, open): a custom ResultSet (as estimation::LshMatcher's
+// TwoNearest) could keep every candidate and filter to nearest + tie_bits after the search; this
+// index was kept for its build time (relocalizer.hpp, vote_lsh: 10-30 ms here against FLANN's
+// measured 0.2-1.5 s over the lab's 158k prior descriptors), not because FLANN cannot vote so.
 class VoteIndex {
  public:
   void build(const std::vector<PriorKeyframe>& kfs, const estimation::LshConfig& cfg) {
     tables_ = cfg.tables;
     key_bits_ = cfg.key_bits;
     multi_probe_ = cfg.multi_probe;
-    std::mt19937 rng(0x6d617073);  // fixed: the same prior map gets the same buckets every run
+    // Fixed seed and our own Fisher-Yates (std::mt19937's output is specified by the standard,
+    // std::shuffle's use of it is not): the same prior map gets the same buckets on every platform.
+    std::mt19937 rng(0x6d617073);
     bits_.clear();
     std::vector<int> all_bits(8 * estimation::kOrbDescriptorBytes);
     std::iota(all_bits.begin(), all_bits.end(), 0);
     for (int t = 0; t < tables_; ++t) {
-      std::shuffle(all_bits.begin(), all_bits.end(), rng);
+      for (size_t i = all_bits.size() - 1; i > 0; --i) std::swap(all_bits[i], all_bits[rng() % (i + 1)]);
       bits_.insert(bits_.end(), all_bits.begin(), all_bits.begin() + key_bits_);
     }
     size_t n = 0;
@@ -104,18 +120,19 @@ class VoteIndex {
     ids_.resize(static_cast<size_t>(tables_) * n);
     keys_.resize(n);
     for (int t = 0; t < tables_; ++t) {
-      uint32_t* off = &offsets_[static_cast<size_t>(t) * (buckets + 1)];
+      uint32_t* off = offsets_.data() + static_cast<size_t>(t) * (buckets + 1);
       for (size_t d = 0; d < n; ++d) {
-        keys_[d] = key(t, &desc_[d * estimation::kOrbDescriptorBytes]);
+        keys_[d] = key(t, desc_.data() + d * estimation::kOrbDescriptorBytes);
         ++off[keys_[d] + 1];
       }
       for (size_t b = 0; b < buckets; ++b) off[b + 1] += off[b];
-      uint32_t* ids = &ids_[static_cast<size_t>(t) * n];
+      uint32_t* ids = ids_.data() + static_cast<size_t>(t) * n;  // data(): n may be 0
       for (size_t d = 0; d < n; ++d) ids[off[keys_[d]]++] = static_cast<uint32_t>(d);
       // The fill advanced each bucket's start to its end: shift back.
       for (size_t b = buckets; b > 0; --b) off[b] = off[b - 1];
       off[0] = 0;
     }
+    std::vector<uint32_t>().swap(keys_);  // build scratch: freed
     seen_.assign(n, 0);
     keyframe_seen_.assign(kfs.size(), 0);
     stamp_ = 0;
@@ -147,7 +164,7 @@ class VoteIndex {
         }
       }
       if (nearest > max_distance) continue;
-      const int limit = std::min(max_distance, nearest + tie_bits);
+      const int limit = std::min(max_distance, nearest + tie_bits);  // create(): both <= 256
       for (const auto& [d, id] : found_) {
         if (d > limit) continue;
         const size_t k = static_cast<size_t>(owner_[id]);
@@ -167,28 +184,18 @@ class VoteIndex {
   }
   void probe(int t, uint32_t k, const uint8_t* q, int* nearest) {
     const size_t buckets = size_t{1} << key_bits_;
-    const uint32_t* off = &offsets_[static_cast<size_t>(t) * (buckets + 1)];
-    const uint32_t* ids = &ids_[static_cast<size_t>(t) * n_];
+    const uint32_t* off = offsets_.data() + static_cast<size_t>(t) * (buckets + 1);
+    const uint32_t* ids = ids_.data() + static_cast<size_t>(t) * n_;  // data(): n_ may be 0
     for (uint32_t i = off[k]; i < off[k + 1]; ++i) {
       const uint32_t id = ids[i];
       if (seen_[id] == stamp_) continue;
       seen_[id] = stamp_;
-      const int d = hamming(q, &desc_[static_cast<size_t>(id) * estimation::kOrbDescriptorBytes]);
+      const int d = estimation::hamming_distance(
+          q, desc_.data() + static_cast<size_t>(id) * estimation::kOrbDescriptorBytes);
       *nearest = std::min(*nearest, d);
       found_.emplace_back(d, id);
     }
   }
-  static int hamming(const uint8_t* a, const uint8_t* b) {
-    int d = 0;
-    for (int w = 0; w < estimation::kOrbDescriptorBytes / 8; ++w) {
-      uint64_t x = 0, y = 0;
-      std::memcpy(&x, a + 8 * w, 8);
-      std::memcpy(&y, b + 8 * w, 8);
-      d += __builtin_popcountll(x ^ y);
-    }
-    return d;
-  }
-
   int tables_ = 0, key_bits_ = 0, multi_probe_ = 0;
   size_t n_ = 0;
   std::vector<int> bits_;                // tables x key_bits descriptor bit indices
@@ -312,11 +319,11 @@ struct Relocalizer::Impl {
   void subsample_source(const PointsView& local);
   // Step e: LSH matches of the current keyframe with the prior keyframes near the camera under
   // T_prior_world that this pose reprojects onto them (pixel and depth); the most over those keyframes.
-  // Keyframes within config.nms_keyframes of exclude_keyframe (>= 0: the ORB seed, whose matches
+  // Keyframes within config.nms_keyframes of any of exclude_keyframes (the ORB seeds whose matches
   // made the pose) are not used: their agreement is not independent evidence. *keyframes_used: how
   // many keyframes were checked.
   int verify(const Eigen::Isometry3d& T_prior_world, const RelocalizationQuery& q, const PriorMap& prior,
-             int exclude_keyframe, int* keyframes_used);
+             const std::vector<int>& exclude_keyframes, int* keyframes_used);
 
   RelocalizerConfig config;
   hal::PinholeIntrinsics K;
@@ -347,6 +354,10 @@ struct Relocalizer::Impl {
   std::vector<std::pair<int, int>> verify_ranked;  // verify(): (distance in 0.1 mm, keyframe index)
   std::vector<Hypothesis> hypotheses;
   std::vector<int> order;
+  std::vector<std::pair<int, int>> orb_seeds;  // (ORB seed keyframe, hypothesis it went into)
+  std::vector<int> seed_picks;                 // per hypothesis: the ORB seed it adopts, -1: none
+  std::vector<Hypothesis> picked_seeds;        // copies of the picks before write-back
+  std::vector<int> excluded_keyframes;         // step e: keyframes that made the best fit
 };
 
 namespace {
@@ -403,7 +414,8 @@ core::Status Relocalizer::Impl::gather_target(PriorMap* prior, const Eigen::Vect
 }
 
 int Relocalizer::Impl::verify(const Eigen::Isometry3d& T_prior_world, const RelocalizationQuery& q,
-                              const PriorMap& prior, int exclude_keyframe, int* keyframes_used) {
+                              const PriorMap& prior, const std::vector<int>& exclude_keyframes,
+                              int* keyframes_used) {
   const Eigen::Isometry3d T_prior_cam = T_prior_world * q.T_world_cam;
   const Eigen::Isometry3d T_cam_prior = T_prior_cam.inverse();
   const Eigen::Vector3d axis = T_prior_cam.linear().col(2);
@@ -412,9 +424,10 @@ int Relocalizer::Impl::verify(const Eigen::Isometry3d& T_prior_world, const Relo
   const std::vector<PriorKeyframe>& kfs = prior.keyframes();
   verify_ranked.clear();
   for (size_t i = 0; i < kfs.size(); ++i) {
-    if (exclude_keyframe >= 0 && std::abs(static_cast<int>(i) - exclude_keyframe) <= config.nms_keyframes) {
-      continue;
-    }
+    bool excluded = false;
+    for (int e : exclude_keyframes)
+      excluded = excluded || std::abs(static_cast<int>(i) - e) <= config.nms_keyframes;
+    if (excluded) continue;
     const double d = (kfs[i].T_prior_cam.translation() - T_prior_cam.translation()).norm();
     if (d > config.verify_radius_m || kfs[i].T_prior_cam.linear().col(2).dot(axis) < min_cos) continue;
     verify_ranked.emplace_back(static_cast<int>(std::lround(d * 1e4)), static_cast<int>(i));
@@ -465,11 +478,11 @@ core::Expected<Relocalizer> Relocalizer::create(const RelocalizerConfig& c, cons
   if (max_features < 1) return core::InvalidArgument("relocalizer: max_features must be >= 1");
   if (c.top_k < 1 || c.keep_best < 1 || c.keep_best > 3 || c.min_orb_inliers < 3 || c.min_votes < 0 ||
       c.verify_keyframes < 0 || c.yaw_sweep_steps < 0 || c.rival_scan < 0 || c.nms_keyframes < 0 ||
-      c.vote_tie_bits < 0 || c.vote_max_distance < 0) {
+      c.vote_tie_bits < 0 || c.vote_max_distance < 0 || c.vote_tie_bits > 256 || c.vote_max_distance > 256) {
     return core::InvalidArgument(
         "relocalizer: top_k >= 1, keep_best in [1, 3], min_orb_inliers >= 3, min_votes >= 0, "
         "verify_keyframes >= 0, yaw_sweep_steps >= 0, rival_scan >= 0, nms_keyframes >= 0, "
-        "vote_tie_bits >= 0 and vote_max_distance >= 0 required");
+        "vote_tie_bits and vote_max_distance in [0, 256] (bits of an ORB descriptor) required");
   }
   if (c.vote_lsh.tables < 1 || c.vote_lsh.tables > 16 || c.vote_lsh.key_bits < 1 ||
       c.vote_lsh.key_bits > 20 || c.vote_lsh.multi_probe < 0 || c.vote_lsh.multi_probe > 2) {
@@ -616,14 +629,19 @@ RelocalizationResult Relocalizer::relocalize(const RelocalizationQuery& q, Prior
            (!q.position.valid || position_offset_m(T_prior_world) <= position_gate_m);
   };
   // Merges near-duplicate seeds (keeps the one with more ORB inliers); true when `h` was added.
+  // Every ORB seed's keyframe is recorded with the hypothesis it went into (m.orb_seeds), merged or
+  // not: its RANSAC inliers made that pose, so it is no independent evidence for it (step e).
   auto add_hypothesis = [&](const Hypothesis& h) {
-    for (Hypothesis& o : m.hypotheses) {
+    for (size_t i = 0; i < m.hypotheses.size(); ++i) {
+      Hypothesis& o = m.hypotheses[i];
       const PoseDistance d = pose_distance(o.T_seed, h.T_seed, m.centroid_world);
       if (d.m <= cfg.dedup_m && d.rad <= cfg.dedup_rad) {
+        if (h.orb_keyframe >= 0) m.orb_seeds.emplace_back(h.orb_keyframe, static_cast<int>(i));
         if (h.orb_inliers > o.orb_inliers) o = h;
         return false;
       }
     }
+    if (h.orb_keyframe >= 0) m.orb_seeds.emplace_back(h.orb_keyframe, static_cast<int>(m.hypotheses.size()));
     m.hypotheses.push_back(h);
     return true;
   };
@@ -636,6 +654,7 @@ RelocalizationResult Relocalizer::relocalize(const RelocalizationQuery& q, Prior
 
   // ---- c. geometry: RANSAC of the candidate's 3D keypoints (prior frame) against the current keypoints ----
   m.hypotheses.clear();
+  m.orb_seeds.clear();
   for (int c : m.selected) {
     if (m.votes[static_cast<size_t>(c)] < cfg.min_votes) continue;
     const PriorKeyframe& kf = kfs[static_cast<size_t>(c)];
@@ -646,6 +665,7 @@ RelocalizationResult Relocalizer::relocalize(const RelocalizationQuery& q, Prior
     h.from_orb = true;
     h.orb_inliers = rr.inliers;
     h.seed_keyframe = c;
+    h.orb_keyframe = c;
     if (!yaw_ok(h.T_seed)) {
       ++res.counters.yaw_rejected;
       continue;
@@ -736,35 +756,66 @@ RelocalizationResult Relocalizer::relocalize(const RelocalizationQuery& q, Prior
     ++picked;
   }
   if (picked == 0) {
+    // Why each coarse NDT failed, counted by reason, so that a person can tell a degenerate scene
+    // (a flat ground plane) from too few points or iterations.
+    std::array<int, 16> failures{};
+    for (const Hypothesis& h : m.hypotheses) {
+      if (h.coarse_score >= 0) continue;
+      ++failures[std::min<size_t>(static_cast<size_t>(h.coarse.failure), failures.size() - 1)];
+    }
+    std::string why;
+    for (size_t f = 0; f < failures.size(); ++f) {
+      if (failures[f] == 0) continue;
+      why += std::string(why.empty() ? "" : ", ") + std::to_string(failures[f]) + " " +
+             ndt_failure_name(static_cast<NdtFailure>(f));
+    }
     return done(RelocalizationReason::kNdtFailed,
                 "relocalizer: none of " + std::to_string(m.hypotheses.size()) +
                     " hypotheses converged in NDT (" + std::to_string(res.counters.ransac_hypotheses) +
-                    " from ORB, " + std::to_string(res.counters.fallback_seeds) + " seeds)");
+                    " from ORB, " + std::to_string(res.counters.fallback_seeds) + " seeds; " +
+                    std::to_string(m.n_source) + " source points; " + (why.empty() ? "no seed" : why) + ")");
   }
   // Seeds that converged onto a refined pose back it: each refined hypothesis takes, of the ORB seeds
-  // whose coarse NDT ended within dedup of its coarse pose, the one nearest its fine pose (step e's
-  // max_ndt_correction and the verification's seed exclusion then judge that seed). Otherwise the
-  // best coarse score among duplicates would decide, and a RANSAC pose metres off that NDT pulled in
-  // (seen from a keyframe 4 m back in the same bay) would veto the fit that a near seed supports.
-  for (Hypothesis& o : m.hypotheses) {
+  // whose coarse NDT ended within dedup of its coarse pose and which are within max_ndt_correction
+  // of its fine pose, the one nearest that fine pose (step e's max_ndt_correction and the
+  // verification then judge the fit against that seed). Otherwise the best coarse score among
+  // duplicates would decide, and a RANSAC pose metres off that NDT pulled in (seen from a keyframe
+  // 4 m back in the same bay) would veto the fit that a near seed supports. A seed farther than
+  // max_ndt_correction is never adopted: it would turn a GNSS / keyframe seed's correct fit into a
+  // rejected ORB one. The picks are made on the unmodified hypotheses, then written back.
+  m.seed_picks.assign(m.hypotheses.size(), -1);
+  for (size_t oi = 0; oi < m.hypotheses.size(); ++oi) {
+    const Hypothesis& o = m.hypotheses[oi];
     if (!o.fine_run || !o.fine.converged) continue;
     double best_correction_m = o.from_orb
                                    ? pose_distance(o.T_seed, o.fine.T_target_source, m.centroid_world).m
                                    : std::numeric_limits<double>::infinity();
-    for (const Hypothesis& h : m.hypotheses) {
-      if (&h == &o || !h.from_orb || h.coarse_score < 0) continue;
+    for (size_t hi = 0; hi < m.hypotheses.size(); ++hi) {
+      const Hypothesis& h = m.hypotheses[hi];
+      if (hi == oi || !h.from_orb || h.coarse_score < 0) continue;
       const PoseDistance d =
           pose_distance(o.coarse.T_target_source, h.coarse.T_target_source, m.centroid_world);
       if (d.m > cfg.dedup_m || d.rad > cfg.dedup_rad) continue;
-      const double correction_m = pose_distance(h.T_seed, o.fine.T_target_source, m.centroid_world).m;
-      if (correction_m < best_correction_m) {
-        best_correction_m = correction_m;
-        o.T_seed = h.T_seed;
-        o.from_orb = true;
-        o.orb_inliers = h.orb_inliers;
-        o.seed_keyframe = h.seed_keyframe;
+      const PoseDistance correction = pose_distance(h.T_seed, o.fine.T_target_source, m.centroid_world);
+      if (correction.m > cfg.max_ndt_correction_m || correction.rad > cfg.max_ndt_correction_rad) continue;
+      if (correction.m < best_correction_m) {
+        best_correction_m = correction.m;
+        m.seed_picks[oi] = static_cast<int>(hi);
       }
     }
+  }
+  m.picked_seeds.resize(m.hypotheses.size());
+  for (size_t oi = 0; oi < m.hypotheses.size(); ++oi) {
+    if (m.seed_picks[oi] >= 0) m.picked_seeds[oi] = m.hypotheses[static_cast<size_t>(m.seed_picks[oi])];
+  }
+  for (size_t oi = 0; oi < m.hypotheses.size(); ++oi) {
+    if (m.seed_picks[oi] < 0) continue;
+    Hypothesis& o = m.hypotheses[oi];
+    const Hypothesis& h = m.picked_seeds[oi];
+    o.T_seed = h.T_seed;
+    o.from_orb = true;
+    o.orb_inliers = h.orb_inliers;
+    o.seed_keyframe = h.seed_keyframe;
   }
   // The best fine result; the scores of the fine-run ones, best first.
   const Hypothesis* best = nullptr;
@@ -829,12 +880,22 @@ RelocalizationResult Relocalizer::relocalize(const RelocalizationQuery& q, Prior
   // Appearance agrees: NDT alone cannot tell symmetric places apart (the lab's two bench rows).
   // Independent evidence only: for an ORB seed, not its own keyframe (nor its neighbours), whose
   // RANSAC inliers made the pose and would agree with it by construction.
-  const int exclude = best->from_orb ? best->seed_keyframe : -1;
-  res.verified_matches = m.verify(T, q, *prior, exclude, &res.verify_keyframes_used);
+  // Every ORB seed whose pose went into a hypothesis whose coarse NDT ended within dedup of the best's
+  // (the best's own, the one it adopted, the duplicates merged into them) made this pose.
+  m.excluded_keyframes.clear();
+  for (const auto& [kf, hi] : m.orb_seeds) {
+    const Hypothesis& h = m.hypotheses[static_cast<size_t>(hi)];
+    if (h.coarse_score < 0 && &h != best) continue;
+    const PoseDistance d =
+        pose_distance(h.coarse.T_target_source, best->coarse.T_target_source, m.centroid_world);
+    if (&h == best || (d.m <= cfg.dedup_m && d.rad <= cfg.dedup_rad)) m.excluded_keyframes.push_back(kf);
+  }
+  if (best->from_orb) m.excluded_keyframes.push_back(best->seed_keyframe);
+  res.verified_matches = m.verify(T, q, *prior, m.excluded_keyframes, &res.verify_keyframes_used);
   if (cfg.require_orb_verification && res.verify_keyframes_used == 0) {
     return done(RelocalizationReason::kNotVerified,
                 format("relocalizer: no prior keyframe within %.1f m of the fitted camera, looking the same "
-                       "way, other than the ORB seed keyframe and its %.0f neighbours each side: the fit "
+                       "way, other than the ORB seed keyframes and their %.0f neighbours each side: the fit "
                        "cannot be checked independently",
                        cfg.verify_radius_m, cfg.nms_keyframes));
   }
@@ -913,8 +974,14 @@ RelocalizationResult Relocalizer::relocalize(const RelocalizationQuery& q, Prior
       if (!st.ok()) return done(RelocalizationReason::kPriorMapError, st.message());
     }
   }
-  const int seed_kf = best->seed_keyframe;
-  auto near_seed = [&](int c) { return seed_kf >= 0 && std::abs(c - seed_kf) <= cfg.nms_keyframes; };
+  // Not the keyframes that made the fit (nor, for a keyframe seed, that keyframe): same pose again.
+  if (!best->from_orb && best->seed_keyframe >= 0) m.excluded_keyframes.push_back(best->seed_keyframe);
+  auto near_seed = [&](int c) {
+    for (int e : m.excluded_keyframes) {
+      if (std::abs(c - e) <= cfg.nms_keyframes) return true;
+    }
+    return false;
+  };
   auto tried = [&](int c) { return std::find(m.selected.begin(), m.selected.end(), c) != m.selected.end(); };
   const Eigen::Vector3d p_prior_fit = T * p_world_cam;
   bool cluster_rival = false;

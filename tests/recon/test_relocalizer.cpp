@@ -22,6 +22,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <limits>
 #include <random>
 #include <string>
 #include <vector>
@@ -215,8 +216,10 @@ constexpr double kRepeatShift_m = 6.0;
 constexpr int kRepeatBitFlips = 3;
 
 // Writes segments kRepeatedFirst..kRepeatedLast and a copy of them shift_m along x (prior frame)
-// whose descriptors have bit_flips random bits flipped each.
-void write_repeated(const std::string& dir, const StoreMetadata& meta, double shift_m, int bit_flips) {
+// whose descriptors have bit_flips random bits flipped each; with_copy false: the segments alone
+// (the control: the same query must localize there).
+void write_repeated(const std::string& dir, const StoreMetadata& meta, double shift_m, int bit_flips,
+                    bool with_copy = true) {
   auto store = MapStore::open(dir, meta);
   ASSERT_TRUE(store.ok()) << store.status().message();
   std::mt19937 rng(6);
@@ -224,6 +227,7 @@ void write_repeated(const std::string& dir, const StoreMetadata& meta, double sh
   for (const SegmentRecord& seg : walk().segments) {
     if (seg.segment_id < kRepeatedFirst || seg.segment_id > kRepeatedLast) continue;
     EXPECT_TRUE(store->write_segment(seg).ok());
+    if (!with_copy) continue;
     SegmentRecord copy = seg;  // the cloud stays in its segment frame; the frame moves
     copy.segment_id = seg.segment_id + 100;
     const Eigen::Translation3d shift(shift_m, 0.0, 0.0);
@@ -247,7 +251,7 @@ void write_repeated(const std::string& dir, const StoreMetadata& meta, double sh
 // the ORB verification radius).
 struct PriorStores {
   TempDir tmp;
-  std::string full, partial, repeated, repeated_identical, repeated_near;
+  std::string full, partial, repeated, repeated_identical, repeated_near, bay_only;
 };
 constexpr double kNearShift_m = 2.5;
 const PriorStores& stores() {
@@ -259,6 +263,7 @@ const PriorStores& stores() {
     p->repeated = p->tmp.path() + "/repeated";
     p->repeated_identical = p->tmp.path() + "/repeated_identical";
     p->repeated_near = p->tmp.path() + "/repeated_near";
+    p->bay_only = p->tmp.path() + "/bay_only";
     StoreMetadata meta;
     meta.run_id = "lab-prior";
     meta.intrinsics = w.K;
@@ -275,6 +280,7 @@ const PriorStores& stores() {
     write_repeated(p->repeated, meta, kRepeatShift_m, kRepeatBitFlips);
     write_repeated(p->repeated_identical, meta, kRepeatShift_m, 0);
     write_repeated(p->repeated_near, meta, kNearShift_m, kRepeatBitFlips);
+    write_repeated(p->bay_only, meta, 0.0, 0, /*with_copy=*/false);
     return p;
   }();
   return *s;
@@ -544,9 +550,27 @@ void expect_ambiguous(const char* what, const std::string& store, double shift_m
   EXPECT_EQ(r.reason, RelocalizationReason::kAmbiguous) << r.message;
   EXPECT_GT(r.rivals_evaluated, 0);
   EXPECT_LT(r.score_margin, RelocalizerConfig{}.min_score_margin);
+  // The copy was refined as a hypothesis and scored within the margin of the best (the 180 deg turn
+  // alone, a poor fit, would not be).
+  EXPECT_GE(r.best_scores[1], (1.0 - RelocalizerConfig{}.min_score_margin) * r.best_scores[0]);
 }
 
 TEST(Relocalizer, GivenARepetitiveRegionThenAmbiguousWithoutPriorsAndTheRightCopyWithAPositionPrior) {
+  {
+    // Control: the same query against the bay alone (no copy) localizes, so the copy is what makes
+    // the query ambiguous below.
+    auto bay = PriorMap::open(stores().bay_only);
+    ASSERT_TRUE(bay.ok()) << bay.status().message();
+    Relocalizer reloc = make_relocalizer();
+    const Eigen::Isometry3d T_true = known_T_prior_world();
+    const CurrentRun run = make_current(walk().query_lab, T_true);
+    const RelocalizationResult r = reloc.relocalize(make_query(run), &bay.value());
+    print_result("the bay alone (control)", r);
+    ASSERT_TRUE(r.localized) << r.message;
+    const Errors e = pose_errors(r.T_prior_world, T_true);
+    EXPECT_LT(e.m, 0.02);
+    EXPECT_LT(e.deg, 0.3);
+  }
   expect_ambiguous("repeated bays, no priors", stores().repeated, kRepeatShift_m);
 
   auto prior = PriorMap::open(stores().repeated);
@@ -637,6 +661,15 @@ TEST(Relocalizer, GivenAnInvalidQueryThenAnErrorReasonAndNoPose) {
   EXPECT_EQ(r.reason, RelocalizationReason::kNoCandidates);
   EXPECT_FALSE(r.localized);
   EXPECT_FALSE(Relocalizer::create(RelocalizerConfig{}, hal::PinholeIntrinsics{}, 10).ok());
+  // Vote distances beyond a descriptor's 256 bits are refused (nearest + tie_bits must not overflow).
+  for (int bits : {257, std::numeric_limits<int>::max()}) {
+    RelocalizerConfig c;
+    c.vote_tie_bits = bits;
+    EXPECT_FALSE(Relocalizer::create(c, walk().K, kMaxFeatures).ok()) << bits;
+    c = RelocalizerConfig{};
+    c.vote_max_distance = bits;
+    EXPECT_FALSE(Relocalizer::create(c, walk().K, kMaxFeatures).ok()) << bits;
+  }
 }
 
 }  // namespace

@@ -23,11 +23,12 @@
 //     T_prior_world = T_prior_cam * T_world_cam^-1. With a yaw prior, hypotheses whose relative yaw
 //     differs by more than yaw_gate_sigmas sigma + yaw_gate_margin_rad are rejected. Hypotheses
 //     within dedup_m / dedup_rad of a better one are merged. A refined pose is backed by the ORB seed
-//     nearest it among those whose coarse NDT ended on it (step e judges that seed). When no candidate gives
-//     one (the paper's method), NDT is seeded with the candidates' keyframe poses ("the initial parameters
-//     are set to the pose of the current key frame"), rotated by the yaw prior when there is one. A position
-//     prior adds seeds of its own: with a yaw prior one (the paper's GNSS + magnetometer case), without one a
-//     sweep of yaw_sweep_steps yaws when ORB gave nothing.
+//     nearest it among those whose coarse NDT ended on it and within max_ndt_correction of it (step
+//     e judges that seed; the verification excludes every ORB seed keyframe that ended on it). When no
+//     candidate gives one (the paper's method), NDT is seeded with the candidates' keyframe poses ("the
+//     initial parameters are set to the pose of the current key frame"), rotated by the yaw prior when there
+//     is one. A position prior adds seeds of its own: with a yaw prior one (the paper's GNSS + magnetometer
+//     case), without one a sweep of yaw_sweep_steps yaws when ORB gave nothing.
 //  d. NDT (recon::NdtAligner, Magnusson 2009) of the current local cloud, moved by each hypothesis,
 //     against the prior points around it (PriorMap::points_near: the cloud's extent + target_margin_m
 //     about its moved centroid), coarse to fine over ndt_coarse.resolutions_m. The keep_best (3)
@@ -69,11 +70,13 @@
 //
 // Memory: create() sizes the current-keyframe matcher, RANSAC, the match and correspondence
 // buffers, the source buffer (max_source_points) and both NDT aligners. relocalize() runs off the
-// control loop and allocates: the prior LSH index (prepare(), once per prior map: a copy of the
-// descriptors, 4 bytes per feature and table, 2^key_bits + 1 offsets per table; 6.3 MB for the lab's
-// 158k features), the current keyframe's LSH tables (FLANN allocates them on every build), the
-// per-prior-keyframe vote and position tables (first call), the prior target cloud (grows to the
-// largest points_near answer, then reused), the prior map's cloud loads and the result's message.
+// control loop and allocates: the prior LSH index (prepare(), once per prior map: per feature a
+// copy of its descriptor (32 B), its keyframe and a query mark (4 B each) and 4 B per table, plus
+// 4 (2^key_bits + 1) B of offsets per table; with 4 x 16-bit tables ~9.9 MB for the lab's 158k
+// features, the build's 4 B per feature of key scratch freed), the current keyframe's LSH tables (FLANN
+// allocates them on every build), the per-prior-keyframe vote and position tables (first call), the prior
+// target cloud (grows to the largest points_near answer, then reused), the prior map's cloud loads and the
+// result's message.
 
 #include <array>
 #include <cstdint>
@@ -126,6 +129,8 @@ struct RelocalizerConfig {
   int vote_max_distance = 50;  // Hamming distance of a vote (nearest prior descriptor)
   // A current descriptor votes for every prior keyframe holding a descriptor within this many bits
   // of the nearest one (near-ties: a repeated place's copies all get the vote); 0: nearest only.
+  // Both in [0, 256]. Votes are per query descriptor: a prior descriptor near several query
+  // descriptors adds once for each.
   int vote_tie_bits = 8;
   int min_votes = 15;     // fewer: the candidate does not go to RANSAC
   int top_k = 8;          // candidates that go on to RANSAC (and fallback seeds)
@@ -239,7 +244,7 @@ struct RelocalizationResult {
   double score_margin = 0;
   int rivals_evaluated = 0;       // rival NDT results the priors allow (distinct or back on the best)
   bool margin_known = false;      // rivals_evaluated > 0; when false the margin is unknown (see step e)
-  int verify_keyframes_used = 0;  // prior keyframes the ORB verification checked (seed excluded)
+  int verify_keyframes_used = 0;  // prior keyframes the ORB verification checked (seeds excluded)
   bool best_from_orb = false;
   int best_orb_inliers = 0;
   int verified_matches = 0;  // ORB verification of the best fit (step e)
