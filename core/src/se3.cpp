@@ -1,5 +1,7 @@
 #include "hwr/core/se3.hpp"
 
+#include <cstdio>
+
 #include <Eigen/SVD>
 
 #include "hwr/core/so3.hpp"
@@ -37,6 +39,20 @@ Eigen::Matrix3d orthonormalize(const Eigen::Matrix3d& R) {
   Eigen::Matrix3d D = Eigen::Matrix3d::Identity();
   D(2, 2) = (U * V.transpose()).determinant() < 0.0 ? -1.0 : 1.0;
   return U * D * V.transpose();
+}
+
+std::string rigid_transform_problem(const Eigen::Isometry3d& T) {
+  if (!T.matrix().allFinite()) return "has a non-finite entry";
+  const Eigen::Matrix3d R = T.linear();
+  const double orthonormality = (R.transpose() * R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff();
+  if (orthonormality > 1e-6) {
+    char buf[96];
+    std::snprintf(buf, sizeof(buf), "is not rigid: |R^T R - I| = %.3g (at most 1e-6)", orthonormality);
+    return buf;
+  }
+  if (R.determinant() < 0) return "is not rigid: det R = -1 (a reflection)";
+  if (T.matrix().row(3) != Eigen::RowVector4d(0, 0, 0, 1)) return "is not rigid: last row is not 0 0 0 1";
+  return "";
 }
 
 }  // namespace hwr::core

@@ -17,6 +17,7 @@
 
 #include "hwr/core/config.hpp"
 #include "hwr/core/file_io.hpp"
+#include "hwr/core/se3.hpp"
 #include "map_store_binary.hpp"
 #include "map_store_files.hpp"
 
@@ -106,22 +107,6 @@ void read_pose(core::ConfigMap& m, const char* key, Eigen::Isometry3d* T) {
   for (int r = 0; r < 3; ++r) {
     for (int c = 0; c < 4; ++c) T->matrix()(r, c) = v[static_cast<size_t>(4 * r + c)];
   }
-}
-
-// Empty when T is a finite rigid transform (rotation orthonormal within 1e-6, determinant +1, last
-// row 0 0 0 1), else what is wrong with it.
-std::string rigid_problem(const Eigen::Isometry3d& T) {
-  if (!T.matrix().allFinite()) return "has a non-finite entry";
-  const Eigen::Matrix3d R = T.linear();
-  const double orthonormality = (R.transpose() * R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff();
-  if (orthonormality > 1e-6) {
-    char buf[96];
-    std::snprintf(buf, sizeof(buf), "is not rigid: |R^T R - I| = %.3g (at most 1e-6)", orthonormality);
-    return buf;
-  }
-  if (R.determinant() < 0) return "is not rigid: det R = -1 (a reflection)";
-  if (T.matrix().row(3) != Eigen::RowVector4d(0, 0, 0, 1)) return "is not rigid: last row is not 0 0 0 1";
-  return "";
 }
 
 // finish() reports type errors as kInvalidArgument; for a file we wrote they mean a malformed file.
@@ -228,7 +213,7 @@ core::Status validate_metadata(const StoreMetadata& m) {
       }
     }
   }
-  const std::string problem = rigid_problem(m.T_imu_cam);
+  const std::string problem = core::rigid_transform_problem(m.T_imu_cam);
   if (!problem.empty()) return core::InvalidArgument("map store: metadata T_imu_cam " + problem);
   return core::Status::Ok();
 }
@@ -292,7 +277,7 @@ core::Expected<StoreMetadata> read_store_yaml(const std::string& path) {
   if (root.has("T_imu_cam")) {
     m.T_imu_cam_recorded = true;
     read_pose(root, "T_imu_cam", &m.T_imu_cam);
-    const std::string problem = rigid_problem(m.T_imu_cam);
+    const std::string problem = core::rigid_transform_problem(m.T_imu_cam);
     if (!problem.empty()) root.record_error("T_imu_cam", problem);
   }
   HWR_RETURN_IF_ERROR(finish_as_parse_error(*doc));

@@ -6,6 +6,8 @@
 #include <limits>
 #include <string>
 
+#include "hwr/core/se3.hpp"
+
 namespace hwr::recon {
 namespace {
 
@@ -34,24 +36,14 @@ core::Status validate(const RelocalizationPriorsConfig& c) {
   return core::Status::Ok();
 }
 
-core::Status validate_rigid(const Eigen::Isometry3d& T) {
-  const Eigen::Matrix3d R = T.linear();
-  if (!T.matrix().allFinite() ||
-      (R.transpose() * R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() > 1e-6 || R.determinant() < 0) {
-    return core::InvalidArgument(
-        "relocalization priors: T_imu_cam is not a rigid transform (rotation "
-        "orthonormal, det +1, finite)");
-  }
-  return core::Status::Ok();
-}
-
 }  // namespace
 
 core::Expected<PriorSensorFrames> prior_sensor_frames(const PriorMap& prior,
                                                       const Eigen::Isometry3d& T_imu_cam,
                                                       const RelocalizationPriorsConfig& config) {
   HWR_RETURN_IF_ERROR(validate(config));
-  HWR_RETURN_IF_ERROR(validate_rigid(T_imu_cam));
+  const std::string rigid = core::rigid_transform_problem(T_imu_cam);
+  if (!rigid.empty()) return core::InvalidArgument("relocalization priors: T_imu_cam " + rigid);
   const Eigen::Isometry3d T_cam_imu = T_imu_cam.inverse();
   PriorSensorFrames out;
   out.keyframes = static_cast<int>(prior.keyframes().size());

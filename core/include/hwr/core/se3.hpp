@@ -4,6 +4,8 @@
 // [Sola] (arXiv:1812.01537) use. Note rho is not the translation of exp(xi) unless phi = 0:
 // t = Jl(phi) rho, [Sola] eq. (172).
 
+#include <string>
+
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
@@ -26,5 +28,9 @@ Eigen::Isometry3d se3_interpolate(const Eigen::Isometry3d& T0, const Eigen::Isom
 // U diag(1, 1, det(U V^T)) V^T). Removes the drift of repeated products; R must be near a rotation
 // (det > 0) for the result to be meaningful.
 Eigen::Matrix3d orthonormalize(const Eigen::Matrix3d& R);
+
+// Empty when T is a finite rigid transform (rotation orthonormal within 1e-6, determinant +1, last
+// row 0 0 0 1); else what is wrong, as a phrase ("is not rigid: ..."), for error messages.
+std::string rigid_transform_problem(const Eigen::Isometry3d& T);
 
 }  // namespace hwr::core
