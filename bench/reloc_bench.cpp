@@ -70,6 +70,7 @@ struct Options {
   double first_motion_m = 1.0, attempt_step_m = 1.0, max_motion_m = 8.0;
   size_t keyframe_step = 12;
   bool verbose = false;
+  std::vector<std::string> sets = {"neither", "imu", "gnss", "both"};  // rows to run (set_key)
 };
 
 // ---- sensor sets (paper Table IV columns) ----
@@ -188,8 +189,11 @@ core::Expected<Prior> open_prior(const Options& o, const std::string& scene, con
   p.map = std::make_unique<recon::PriorMap>(std::move(map).value());
   p.open_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();
   p.T_imu_cam = p.map->metadata().T_imu_cam;
-  if (!p.map->metadata().T_imu_cam_recorded) {
-    // A store written before hwr-robot recorded T_imu_cam: the simulator's mount is the truth.
+  if (!p.map->metadata().T_imu_cam_recorded ||
+      (p.T_imu_cam.matrix() - prior_run.T_imu_cam().matrix()).cwiseAbs().maxCoeff() > 1e-6) {
+    // A store without T_imu_cam, or with another one (an identity, written by an hwr-robot that had
+    // the field but did not fill it in; a wrong mount turns the magnetometer heading by tens of
+    // degrees): the simulator's mount is the truth.
     p.T_imu_cam = prior_run.T_imu_cam();
     p.T_imu_cam_from_sim = true;
   }
@@ -240,6 +244,7 @@ struct Row {
   std::string scene;
   SensorSet set = SensorSet::kNeither;
   bool applicable = true;
+  bool skipped = false;  // not in --sets
   std::vector<StartRecord> starts;
   std::map<std::string, int> attempt_reasons;  // every attempt's reason
   std::map<std::string, int> prior_notes;      // what the priors were at the first attempt
@@ -291,6 +296,10 @@ recon::RelocalizationPriorsConfig priors_config(const RelocSimRun& run, SensorSe
 // The truth of T_prior_cam at a query: (a) through the scene, (b) local to the nearest prior keyframe.
 struct QueryTruth {
   Eigen::Isometry3d T_prior_cam_true, T_prior_cam_local;
+  // The same local truth from the nearest prior keyframe of another pass (index more than 30 away,
+  // within 3 m), when there is one: how far the prior map's passes disagree there (verbose).
+  bool other_pass = false;
+  Eigen::Isometry3d T_prior_cam_local_other_pass = Eigen::Isometry3d::Identity();
 };
 QueryTruth query_truth(const Prior& prior, const RelocStart& start, const Eigen::Isometry3d& T_start_cam) {
   QueryTruth q;
@@ -307,6 +316,21 @@ QueryTruth query_truth(const Prior& prior, const RelocStart& start, const Eigen:
   }
   const Eigen::Isometry3d T_kf_cam = prior.T_prior_cam_true[best].inverse() * q.T_prior_cam_true;
   q.T_prior_cam_local = prior.map->keyframes()[best].T_prior_cam * T_kf_cam;
+  size_t other = 0;
+  double other_d = 9.0;  // (3 m)^2
+  for (size_t k = 0; k < prior.p_true_m.size(); ++k) {
+    if (k + 30 > best && k < best + 30) continue;
+    const double d = (prior.p_true_m[k] - q.T_prior_cam_true.translation()).squaredNorm();
+    if (d < other_d) {
+      other_d = d;
+      other = k;
+      q.other_pass = true;
+    }
+  }
+  if (q.other_pass) {
+    q.T_prior_cam_local_other_pass = prior.map->keyframes()[other].T_prior_cam *
+                                     (prior.T_prior_cam_true[other].inverse() * q.T_prior_cam_true);
+  }
   return q;
 }
 
@@ -356,6 +380,23 @@ core::Status run_start(const Options& o, Prior* prior, recon::Relocalizer* reloc
                     local->size(), r.localized ? "LOCALIZED" : "not localized", r.wall_s, note.c_str(),
                     r.message.c_str());
       }
+      if (o.verbose && !r.localized && r.best_fit_valid) {
+        // The rejected best fit: was the rejection right?
+        const PoseError e = pose_error(r.T_prior_world_best_fit * T_world_cam, truth.T_prior_cam_local);
+        const Outcome c = classify(true, e);
+        const Eigen::Vector3d p_fit = (r.T_prior_world_best_fit * T_world_cam).translation();
+        const Eigen::Vector3d p_true = truth.T_prior_cam_local.translation();
+        std::printf(
+            "      rejected fit: error local %.2f cm %.3f deg (%s); camera at %.1f %.1f, truth %.1f %.1f",
+            e.cm, e.deg,
+            c == Outcome::kSuccess      ? "correct"
+            : c == Outcome::kInaccurate ? "inaccurate"
+                                        : "wrong",
+            p_fit.x(), p_fit.y(), p_true.x(), p_true.y());
+        if (q.position.valid)
+          std::printf(", position prior %.1f %.1f", q.position.p_prior_m.x(), q.position.p_prior_m.y());
+        std::printf("\n");
+      }
       if (r.localized) {
         const Eigen::Isometry3d T_prior_cam = r.T_prior_world * T_world_cam;
         s.rec.err_true = pose_error(T_prior_cam, truth.T_prior_cam_true);
@@ -363,8 +404,16 @@ core::Status run_start(const Options& o, Prior* prior, recon::Relocalizer* reloc
         s.rec.outcome = classify(true, s.rec.err_local);
         s.done = true;
         if (o.verbose) {
-          std::printf("      error local %.2f cm %.3f deg, vs true T_prior_world %.2f cm %.3f deg\n",
+          std::printf("      error local %.2f cm %.3f deg, vs true T_prior_world %.2f cm %.3f deg",
                       s.rec.err_local.cm, s.rec.err_local.deg, s.rec.err_true.cm, s.rec.err_true.deg);
+          if (truth.other_pass) {
+            const PoseError e_other = pose_error(T_prior_cam, truth.T_prior_cam_local_other_pass);
+            const PoseError spread = pose_error(truth.T_prior_cam_local_other_pass, truth.T_prior_cam_local);
+            std::printf(
+                "; another pass's keyframe: error %.2f cm %.3f deg (the passes disagree by %.2f cm %.3f deg)",
+                e_other.cm, e_other.deg, spread.cm, spread.deg);
+          }
+          std::printf("\n");
         }
       }
     }
@@ -437,12 +486,22 @@ int run_reloc(int argc, char** argv) {
       o.keyframe_step = static_cast<size_t>(std::max(1, std::atoi(value("--keyframe-step").c_str())));
     } else if (a == "--verbose") {
       o.verbose = true;
+    } else if (a == "--sets") {
+      o.sets.clear();
+      std::stringstream ss(value("--sets"));
+      for (std::string s; std::getline(ss, s, ',');) {
+        if (s != "neither" && s != "imu" && s != "gnss" && s != "both") {
+          std::fprintf(stderr, "reloc: unknown sensor set '%s' (neither, imu, gnss, both)\n", s.c_str());
+          return 2;
+        }
+        o.sets.push_back(s);
+      }
     } else {
       std::fprintf(stderr,
                    "usage: hwr-bench reloc [--scenes lab,outdoor] [--starts N] [--quick] [--seed S]\n"
                    "       [--prior-cache DIR] [--robot PATH] [--false-starts N] [--max-attempts N]\n"
                    "       [--first-motion-m M] [--attempt-step-m M] [--max-motion-m M] [--keyframe-step N] "
-                   "[--verbose]\n");
+                   "[--verbose]\n       [--sets neither,imu,gnss,both]\n");
       return a == "--help" || a == "-h" ? 0 : 2;
     }
   }
@@ -517,7 +576,9 @@ int run_reloc(int argc, char** argv) {
         sc.prior->build_s > 1.0
             ? (", built by hwr-robot in " + std::to_string(sc.prior->build_s) + " s").c_str()
             : ", cached",
-        sc.prior->T_imu_cam_from_sim ? "; its store has no T_imu_cam: the simulator's mount is used" : "");
+        sc.prior->T_imu_cam_from_sim
+            ? "; its store has no T_imu_cam or another than the simulator's: the simulator's mount is used"
+            : "");
     for (size_t f : draw_starts(*sc.revisit, o.starts, o.max_motion_m + 0.5, &rng)) {
       sc.starts.push_back(std::make_unique<RelocStart>(sc.revisit.get(), f, o.keyframe_step, kMaxFeatures));
     }
@@ -535,7 +596,8 @@ int run_reloc(int argc, char** argv) {
       row->scene = sc.name;
       row->set = s;
       row->applicable = has_gnss || !uses_gnss(s);
-      if (row->applicable) sets.push_back(s);
+      row->skipped = std::find(o.sets.begin(), o.sets.end(), std::string(set_key(s))) == o.sets.end();
+      if (row->applicable && !row->skipped) sets.push_back(s);
       rows.push_back(std::move(row));
     }
     std::vector<Row*> row_of;
@@ -655,9 +717,9 @@ int run_reloc(int argc, char** argv) {
     std::string paper_text = std::isnan(paper.mean_s) ? (r->applicable ? "-" : "\\")
                                                       : std::to_string(paper.mean_s).substr(0, 5) + " +- " +
                                                             std::to_string(paper.sd_s).substr(0, 4);
-    if (!r->applicable) {
-      std::printf("%-8s %-13s %7s  n/a (indoors: no GNSS)%68s\n", r->scene.c_str(), set_label(r->set), "",
-                  paper_text.c_str());
+    if (!r->applicable || r->skipped) {
+      std::printf("%-8s %-13s %7s  %-22s%68s\n", r->scene.c_str(), set_label(r->set), "",
+                  r->skipped ? "not run (--sets)" : "n/a (indoors: no GNSS)", paper_text.c_str());
       continue;
     }
     int n_success = 0, n_inacc = 0, n_false = 0, n_not = 0;

@@ -662,6 +662,15 @@ int run(const Args& args) {
           "hwr-robot: --prior-map: %s does not record T_imu_cam (written before it did); this run's is "
           "used for its magnetometer heading\n",
           args.prior_map.c_str());
+    } else if ((prior_T_imu_cam.matrix() - info.T_imu_cam.matrix()).cwiseAbs().maxCoeff() > 1e-3) {
+      // The same robot on both visits should have one mount; a different one (a recalibration, or a
+      // store written by an hwr-robot that recorded an identity) turns the prior's magnetometer heading.
+      std::fprintf(
+          stderr,
+          "hwr-robot: --prior-map: warning: %s records a camera-IMU extrinsic T_imu_cam that differs "
+          "from this run's by up to %.3f; the prior's is used for its magnetometer heading (if the "
+          "heading is refused or far from the GNSS one, check the prior's calibration)\n",
+          args.prior_map.c_str(), (prior_T_imu_cam.matrix() - info.T_imu_cam.matrix()).cwiseAbs().maxCoeff());
     }
     auto frames = hwr::recon::prior_sensor_frames(prior.value(), prior_T_imu_cam, priors_cfg);
     if (!frames.ok()) {

@@ -149,7 +149,7 @@ MagHeadingResult MagHeadingEstimator::result(std::vector<bool>* used_per_stored)
   out.invalid_input = invalid_;
   out.stored = count_;
   if (used_per_stored != nullptr) used_per_stored->assign(count_, false);
-  char msg[400];
+  char msg[640];
   if (count_ == 0) {
     std::snprintf(
         msg, sizeof(msg),
@@ -171,8 +171,12 @@ MagHeadingResult MagHeadingEstimator::result(std::vector<bool>* used_per_stored)
   // Gates 1-3, and the weighted heading histogram of the survivors.
   std::array<double, 360> hist{};
   size_t candidates = 0;
+  double stored_weight = 0.0;
+  bool placed = false;  // some sample came with a position: weights are per place
   for (size_t i = 0; i < count_; ++i) {
     const Record& r = records_[i];
+    stored_weight += weight_[i];
+    placed |= r.place != kNoPlace;
     if (r.horizontal_uT < config_.min_horizontal_field_uT) {
       gate_[i] = kHorizontal;
       ++out.rejected_horizontal;
@@ -222,6 +226,7 @@ MagHeadingResult MagHeadingEstimator::result(std::vector<bool>* used_per_stored)
   }
   out.used = used;
   out.rejected_heading = candidates - used;
+  out.used_fraction = used > 0 && stored_weight > 0.0 ? std::min(1.0, w_sum / stored_weight) : 0.0;
   if (used_per_stored != nullptr) {
     for (size_t i = 0; i < count_; ++i) (*used_per_stored)[i] = gate_[i] == kHeadingIn;
   }
@@ -244,6 +249,20 @@ MagHeadingResult MagHeadingEstimator::result(std::vector<bool>* used_per_stored)
         out.rejected_field, out.field_ref_uT, 100.0 * config_.field_tolerance_frac, out.rejected_inclination,
         out.inclination_ref_rad * 180.0 / M_PI, config_.inclination_tolerance_rad * 180.0 / M_PI,
         out.rejected_heading, config_.heading_gate_rad * 180.0 / M_PI);
+    out.reason = msg;
+    return out;
+  }
+  if (out.used_fraction < config_.min_used_fraction) {
+    // "Majority" (header comment): the agreeing samples are a minority of the places.
+    std::snprintf(
+        msg, sizeof(msg),
+        "the %zu of %zu magnetometer samples that agree on one field and heading are only %.1f%% of "
+        "the %s (need %.0f%%; rejected: %zu |B| off %.3g uT, %zu dip off %.1f deg, %zu heading off the "
+        "consensus): most places are disturbed, or the attitudes given with the samples are wrong "
+        "(e.g. a wrong camera-IMU extrinsic T_imu_cam)",
+        used, count_, 100.0 * out.used_fraction, placed ? "visited places" : "samples",
+        100.0 * config_.min_used_fraction, out.rejected_field, out.field_ref_uT, out.rejected_inclination,
+        out.inclination_ref_rad * 180.0 / M_PI, out.rejected_heading);
     out.reason = msg;
     return out;
   }

@@ -59,6 +59,10 @@ inline int normal_cluster(const Eigen::Vector3f& n) {
 struct FreeSpaceCarver::Impl {
   static constexpr int kBiasBins = 200;
 
+  // What a pass of cast() measures: the pose check's near / far rays and residuals, the votes, or
+  // the point-to-plane normal equations (header).
+  enum class Pass : uint8_t { kCheck, kVote, kAlign };
+
   // The ray being cast, handed to the filter through Embree's context (the RTCIntersectContext must
   // be the first member: Embree passes its address back).
   struct RayContext {
@@ -69,7 +73,7 @@ struct FreeSpaceCarver::Impl {
     float margin_m = 0;          // free beyond this height above the measured plane
     float occupied_band_m = 0;   // occupied within ± this
     uint32_t stamp = 0;
-    bool vote = true;
+    Pass pass = Pass::kVote;
     int64_t free_votes = 0, occupied_votes = 0;
     // Voting pass: which normal clusters passed the check (their rays vote).
     std::array<bool, kNormalClusters> cluster_votes{};
@@ -82,6 +86,11 @@ struct FreeSpaceCarver::Impl {
     std::array<int64_t, kNormalClusters> surface_pairs{};
     std::array<double, kNormalClusters> margin_sum_m{};  // of those pairs' free margins
     std::array<std::array<uint32_t, kBiasBins>, kNormalClusters> bias_hist{};
+    // Align pass: this ray's Tukey c and its weighted sums over the prior points within it.
+    float align_c_m = 0;
+    float align_w = 0, align_ws = 0;
+    Eigen::Vector3f align_wp = Eigen::Vector3f::Zero();
+    int align_n = 0;
   };
 
   FreeSpaceCarverConfig config;
@@ -126,7 +135,23 @@ struct FreeSpaceCarver::Impl {
       const Eigen::Map<const Eigen::Vector3f> p(&self->spheres[4 * static_cast<size_t>(prim)]);
       const Eigen::Vector3f q_to_p = p - rc->q;
       const float s = rc->n.dot(q_to_p);  // height above the measured plane, towards the camera
-      if (!rc->vote) {
+      if (rc->pass == Pass::kAlign) {
+        // Tukey biweight of the point's height (header: point-to-plane normal equations).
+        if (!(std::abs(s) < rc->align_c_m)) continue;
+        // ... times a biweight kernel of its distance to the ray, so that points entering or
+        // leaving the ray's sphere of reach as the pose moves change the mean continuously.
+        const float lateral2 = (p - rc->o).cross(rc->d).squaredNorm() / (rc->d_norm * rc->d_norm);
+        const float l = 1.0f - lateral2 / (self->config.point_radius_m * self->config.point_radius_m);
+        if (!(l > 0.0f)) continue;
+        const float x = s / rc->align_c_m;
+        const float w = (1.0f - x * x) * (1.0f - x * x) * l * l;
+        rc->align_w += w;
+        rc->align_ws += w * s;
+        rc->align_wp += w * p;
+        ++rc->align_n;
+        continue;
+      }
+      if (rc->pass == Pass::kCheck) {
         rc->ray_hit = true;
         if (std::abs(s) < rc->bias_window_m) {
           const int bin = static_cast<int>((s + rc->bias_window_m) / (2.0f * rc->bias_window_m) * kBiasBins);
@@ -151,6 +176,72 @@ struct FreeSpaceCarver::Impl {
     }
   }
 
+  // The local plane at pixel (u, v) for measure(): a least-squares fit of the inverse depth
+  // w = a dx + b dy + w0 over the samples every `step` pixels within ±r (dx, dy normalised image
+  // offsets), n / c = (a, b, w0 - a xb - b yb) as in the header. Fails when fewer than 3/4 of the
+  // samples are valid. *count: the samples used; *max_dev, *rms: of their residuals.
+  bool fit_plane(const cv::Mat& depth_m, int u, int v, int r, int step, float fx, float fy, float xb,
+                 float yb, Eigen::Vector3f* n_over_c, int* count, float* max_dev, float* rms) const {
+    Eigen::Matrix3f A = Eigen::Matrix3f::Zero();
+    Eigen::Vector3f b = Eigen::Vector3f::Zero();
+    int valid = 0, total = 0;
+    for (int dv = -r; dv <= r; dv += step) {
+      for (int du = -r; du <= r; du += step) {
+        ++total;
+        const float w = inverse_depth(depth_m, u + du, v + dv);
+        if (w == 0.0f) continue;
+        const Eigen::Vector3f x(static_cast<float>(du) / fx, static_cast<float>(dv) / fy, 1.0f);
+        A.noalias() += x * x.transpose();
+        b += w * x;
+        ++valid;
+      }
+    }
+    if (4 * valid < 3 * total || valid < 4) return false;
+    const Eigen::Vector3f abw = A.ldlt().solve(b);  // a, b, w0
+    if (!abw.allFinite() || !(abw.z() > 0.0f)) return false;
+    float sum2 = 0.0f, worst = 0.0f;
+    for (int dv = -r; dv <= r; dv += step) {
+      for (int du = -r; du <= r; du += step) {
+        const float w = inverse_depth(depth_m, u + du, v + dv);
+        if (w == 0.0f) continue;
+        const float dev =
+            w - (abw.x() * static_cast<float>(du) / fx + abw.y() * static_cast<float>(dv) / fy + abw.z());
+        sum2 += dev * dev;
+        worst = std::max(worst, std::abs(dev));
+      }
+    }
+    *n_over_c = Eigen::Vector3f(abw.x(), abw.y(), abw.z() - xb * abw.x() - yb * abw.y());
+    *count = valid;
+    *max_dev = worst;
+    *rms = std::sqrt(sum2 / static_cast<float>(valid));
+    return true;
+  }
+
+  // One ray's point-to-plane residual (header): the Tukey-weighted mean of the prior points near the
+  // measured plane, its Jacobian for T_prior_cam * exp(xi) and its weight, added to *system.
+  static void add_residual(const RayContext& rc, const Eigen::Matrix3f& R, const Eigen::Vector3f& o,
+                           const MeasuredPlane& mp, PointToPlaneSystem* system) {
+    const float sigma_normal_m = mp.sigma_m;
+    const float r = rc.align_ws / rc.align_w;
+    const Eigen::Vector3f p_mean = rc.align_wp / rc.align_w;
+    const Eigen::Vector3d p_cam = (R.transpose() * (p_mean - o)).cast<double>();
+    const Eigen::Vector3d n_cam = mp.n_cam.cast<double>();  // towards the camera, as rc.n
+    Eigen::Matrix<double, 6, 1> J;
+    J.head<3>() = n_cam.cross(p_cam);
+    J.tail<3>() = -n_cam;
+    const double sigma2 = static_cast<double>(sigma_normal_m) * sigma_normal_m;
+    const double w = static_cast<double>(rc.align_w) / rc.align_n / sigma2;
+    system->H.noalias() += w * J * J.transpose();
+    system->g += (w * r) * J;
+    system->cost += w * r * r;
+    system->weight += w;
+    ++system->residuals;
+    const float r_sigmas = std::abs(r) / sigma_normal_m;
+    const int bin = std::min(PointToPlaneSystem::kResidualBins - 1,
+                             static_cast<int>(r_sigmas / PointToPlaneSystem::kResidualBinSigmas));
+    ++system->abs_residual_hist[static_cast<size_t>(bin)];
+  }
+
   // The q-quantile of the check pass's histogram of s in cluster k (bin centre).
   static float quantile(const RayContext& rc, int k, double q, float window_m) {
     const auto& hist = rc.bias_hist[static_cast<size_t>(k)];
@@ -164,11 +255,12 @@ struct FreeSpaceCarver::Impl {
     return (2.0f * (static_cast<float>(bin) + 0.5f) / kBiasBins - 1.0f) * window_m;
   }
 
-  // Casts every stride_px-th pixel's ray (header); with vote false only the pose check's near / far
-  // rays and near-surface residuals are measured, with vote true only the rays of the clusters in
-  // rc_out->cluster_votes are cast.
+  // Casts every stride_px-th pixel's ray (header). kCheck measures only the pose check's near / far
+  // rays and near-surface residuals; kVote casts only the rays of the clusters in
+  // rc_out->cluster_votes.
   void cast(const cv::Mat& depth_m, const hal::PinholeIntrinsics& K, const Eigen::Isometry3d& T_prior_cam,
-            int stride_px, bool vote, RayContext* rc_out, FreeSpaceObserveStats* stats_out) {
+            int stride_px, Pass pass, RayContext* rc_out, FreeSpaceObserveStats* stats_out) {
+    const bool vote = pass == Pass::kVote;
     const Eigen::Matrix3f R = T_prior_cam.linear().cast<float>();
     const Eigen::Vector3f o = T_prior_cam.translation().cast<float>();
     const FreeSpaceCarverConfig& c = config;
@@ -182,7 +274,7 @@ struct FreeSpaceCarver::Impl {
     rtcInitIntersectContext(&rc.embree);
     rc.self = this;
     rc.o = o;
-    rc.vote = vote;
+    rc.pass = pass;
     rc.bias_window_m = config.bias_window_m;
     FreeSpaceObserveStats& stats = *stats_out;
     for (int v = 0; v < depth_m.rows; v += stride_px) {
@@ -267,7 +359,7 @@ struct FreeSpaceCarver::Impl {
         rh.hit.primID = RTC_INVALID_GEOMETRY_ID;
         rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
         rtcIntersect1(scene, &rc.embree, &rh);
-        if (!vote) {
+        if (pass == Pass::kCheck) {
           if (rc.ray_near) {
             ++rc.near_rays[static_cast<size_t>(cluster)];
           } else if (rc.ray_hit) {
@@ -275,6 +367,104 @@ struct FreeSpaceCarver::Impl {
           }
         }
       }
+    }
+  }
+
+  // The local planes of every stride-th pixel from (offset, offset) (header: point-to-plane normal
+  // equations) into out[0, capacity); returns how many.
+  int measure(const cv::Mat& depth_m, const hal::PinholeIntrinsics& K, const PlaneSamplingParams& p,
+              MeasuredPlane* out, int capacity) const {
+    const FreeSpaceCarverConfig& c = config;
+    const float fx = static_cast<float>(K.fx), fy = static_cast<float>(K.fy);
+    const float cx = static_cast<float>(K.cx), cy = static_cast<float>(K.cy);
+    const float max_depth_m = p.max_depth_m > 0.0f ? p.max_depth_m : c.max_depth_m;
+    int n_out = 0;
+    for (int v = p.offset_px; v < depth_m.rows && n_out < capacity; v += p.stride_px) {
+      for (int u = p.offset_px; u < depth_m.cols && n_out < capacity; u += p.stride_px) {
+        const float z_raw = depth_m.ptr<float>(v)[u];
+        if (!std::isfinite(z_raw) || z_raw <= 0.0f || z_raw > 1.2f * max_depth_m) continue;
+        const float xb = (static_cast<float>(u) - cx) / fx, yb = (static_cast<float>(v) - cy) / fy;
+        Eigen::Vector3f n_over_c;
+        int count = 0;
+        float max_dev = 0.0f, rms = 0.0f;
+        if (!fit_plane(depth_m, u, v, p.plane_radius_px, p.plane_step_px, fx, fy, xb, yb, &n_over_c, &count,
+                       &max_dev, &rms)) {
+          continue;
+        }
+        const Eigen::Vector3f d_cam(xb, yb, 1.0f);
+        const float w0 = n_over_c.dot(d_cam);
+        // The fit's residuals against the noise of 1/z, sigma_z / z² = k + m0 w² (header): a window
+        // across a crease (floor meeting wall) or a depth edge fails one of the two tests.
+        const float sigma_w = c.depth_noise_k + p.depth_noise_m0 * w0 * w0;
+        if (!(max_dev <= p.max_dev_sigmas * sigma_w + c.planarity_rel * 0.1f * w0) ||
+            !(rms <= p.max_rms_sigmas * sigma_w)) {
+          continue;
+        }
+        const float z = 1.0f / w0;
+        if (!(z >= c.min_depth_m && z <= max_depth_m)) continue;
+        const float d_norm = d_cam.norm();
+        const float cos_inc = n_over_c.dot(d_cam) / (n_over_c.norm() * d_norm);
+        if (!(cos_inc >= c.min_cos_incidence)) continue;
+        // Noise along the normal: the prior's own, and the range noise of the fit's endpoint.
+        const float s_range_m = (p.depth_noise_m0 + c.depth_noise_k * z * z) * d_norm * cos_inc /
+                                std::sqrt(static_cast<float>(count));
+        MeasuredPlane& mp = out[n_out++];
+        mp.d_cam = d_cam;
+        mp.z_m = z;
+        mp.n_cam = -n_over_c.normalized();
+        mp.cos_inc = cos_inc;
+        mp.sigma_m = std::sqrt(c.margin_min_m * c.margin_min_m + s_range_m * s_range_m);
+      }
+    }
+    return n_out;
+  }
+
+  // Casts the measured planes from T_prior_cam and adds their point-to-plane residuals to *system.
+  void cast_planes(const MeasuredPlane* planes, int n_planes, const Eigen::Isometry3d& T_prior_cam,
+                   const PointToPlaneParams& params, PointToPlaneSystem* system) {
+    const Eigen::Matrix3f R = T_prior_cam.linear().cast<float>();
+    const Eigen::Vector3f o = T_prior_cam.translation().cast<float>();
+    RayContext rc;
+    rtcInitIntersectContext(&rc.embree);
+    rc.self = this;
+    rc.o = o;
+    rc.pass = Pass::kAlign;
+    for (int i = 0; i < n_planes; ++i) {
+      const MeasuredPlane& mp = planes[i];
+      ++system->rays_cast;
+      rc.d = R * mp.d_cam;
+      rc.q = o + mp.z_m * rc.d;
+      rc.n = R * mp.n_cam;
+      rc.d_norm = mp.d_cam.norm();
+      rc.align_c_m = params.window_m;
+      if (params.tukey_c_sigmas > 0.0f)
+        rc.align_c_m = std::min(params.window_m, params.tukey_c_sigmas * mp.sigma_m);
+      rc.align_w = rc.align_ws = 0.0f;
+      rc.align_wp.setZero();
+      rc.align_n = 0;
+      if (++ray_id == 0) {
+        std::fill_n(stamps.begin(), n, 0u);
+        ray_id = 1;
+      }
+      rc.stamp = ray_id;
+      RTCRayHit rh;
+      rh.ray.org_x = o.x();
+      rh.ray.org_y = o.y();
+      rh.ray.org_z = o.z();
+      rh.ray.dir_x = rc.d.x();
+      rh.ray.dir_y = rc.d.y();
+      rh.ray.dir_z = rc.d.z();
+      rh.ray.tnear = 0.0f;
+      rh.ray.tfar = mp.z_m + (rc.align_c_m + config.point_radius_m) / (rc.d_norm * mp.cos_inc);
+      rh.ray.time = 0.0f;
+      rh.ray.mask = 0xFFFFFFFFu;
+      rh.ray.id = 0;
+      rh.ray.flags = 0;
+      rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+      rh.hit.primID = RTC_INVALID_GEOMETRY_ID;
+      rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+      rtcIntersect1(scene, &rc.embree, &rh);
+      if (rc.align_n > 0 && rc.align_w > 0.0f) add_residual(rc, R, o, mp, system);
     }
   }
 
@@ -413,12 +603,11 @@ core::Status FreeSpaceCarver::set_prior(const CloudPoint* points_prior, int n) {
   return core::Status::Ok();
 }
 
-core::Expected<FreeSpaceObserveStats> FreeSpaceCarver::observe(const cv::Mat& depth_m,
-                                                               const hal::PinholeIntrinsics& K,
-                                                               const Eigen::Isometry3d& T_prior_cam,
-                                                               int stride_px) {
-  Impl& m = *impl_;
-  const FreeSpaceCarverConfig& c = m.config;
+namespace {
+
+// The checks observe() and accumulate_point_to_plane() share.
+core::Status check_frame(const cv::Mat& depth_m, const hal::PinholeIntrinsics& K,
+                         const Eigen::Isometry3d& T_prior_cam, int stride_px, bool has_scene) {
   if (!K.valid()) return core::InvalidArgument("free-space carver: invalid intrinsics");
   if (depth_m.type() != CV_32FC1 || depth_m.cols != K.width || depth_m.rows != K.height) {
     return core::InvalidArgument("free-space carver: depth must be CV_32FC1 of " + std::to_string(K.width) +
@@ -434,9 +623,72 @@ core::Expected<FreeSpaceObserveStats> FreeSpaceCarver::observe(const cv::Mat& de
     return core::InvalidArgument(
         "free-space carver: T_prior_cam is not a finite rigid transform (rotation must be orthonormal)");
   }
-  if (m.scene == nullptr) {
-    return core::InvalidArgument("free-space carver: observe() before set_prior()");
+  if (!has_scene) {
+    return core::InvalidArgument("free-space carver: a frame cast before set_prior()");
   }
+  return core::Status::Ok();
+}
+
+}  // namespace
+
+float PointToPlaneSystem::median_abs_residual_sigmas() const {
+  if (residuals <= 0) return 0.0f;
+  const double target = 0.5 * residuals;
+  int64_t below = 0;
+  int bin = 0;
+  while (bin < kResidualBins - 1 &&
+         static_cast<double>(below + abs_residual_hist[static_cast<size_t>(bin)]) <= target) {
+    below += abs_residual_hist[static_cast<size_t>(bin)];
+    ++bin;
+  }
+  return (static_cast<float>(bin) + 0.5f) * kResidualBinSigmas;
+}
+
+core::Expected<int> FreeSpaceCarver::measure_planes(const cv::Mat& depth_m, const hal::PinholeIntrinsics& K,
+                                                    const PlaneSamplingParams& params, MeasuredPlane* out,
+                                                    int capacity) const {
+  HWR_RETURN_IF_ERROR(check_frame(depth_m, K, Eigen::Isometry3d::Identity(), params.stride_px, true));
+  if (params.offset_px < 0 || params.plane_radius_px < 1 || params.plane_step_px < 1 || capacity < 0 ||
+      (capacity > 0 && out == nullptr)) {
+    return core::InvalidArgument(
+        "free-space carver: measure_planes needs offset_px >= 0, plane_radius_px and plane_step_px >= 1 and "
+        "an output array of capacity >= 0 (got offset " +
+        std::to_string(params.offset_px) + ", radius " + std::to_string(params.plane_radius_px) + ", step " +
+        std::to_string(params.plane_step_px) + ", capacity " + std::to_string(capacity) + ")");
+  }
+  return impl_->measure(depth_m, K, params, out, capacity);
+}
+
+core::Status FreeSpaceCarver::accumulate_point_to_plane(const MeasuredPlane* planes, int n_planes,
+                                                        const Eigen::Isometry3d& T_prior_cam,
+                                                        const PointToPlaneParams& params,
+                                                        PointToPlaneSystem* system) {
+  Impl& m = *impl_;
+  if (n_planes < 0 || (n_planes > 0 && planes == nullptr) || system == nullptr ||
+      !(std::isfinite(params.window_m) && params.window_m > 0.0f) || !std::isfinite(params.tukey_c_sigmas)) {
+    return core::InvalidArgument(
+        "free-space carver: point-to-plane needs planes (n >= 0), a system, a positive finite window_m and a "
+        "finite tukey_c_sigmas (got n " +
+        std::to_string(n_planes) + ", window " + std::to_string(params.window_m) + " m)");
+  }
+  if (!is_rigid(T_prior_cam)) {
+    return core::InvalidArgument(
+        "free-space carver: T_prior_cam is not a finite rigid transform (rotation must be orthonormal)");
+  }
+  if (m.scene == nullptr) return core::InvalidArgument("free-space carver: a frame cast before set_prior()");
+  if (m.n == 0) return core::Status::Ok();
+  ScopedFlushDenormals ftz;
+  m.cast_planes(planes, n_planes, T_prior_cam, params, system);
+  return m.embree_status("free-space carver: casting point-to-plane rays");
+}
+
+core::Expected<FreeSpaceObserveStats> FreeSpaceCarver::observe(const cv::Mat& depth_m,
+                                                               const hal::PinholeIntrinsics& K,
+                                                               const Eigen::Isometry3d& T_prior_cam,
+                                                               int stride_px) {
+  Impl& m = *impl_;
+  const FreeSpaceCarverConfig& c = m.config;
+  HWR_RETURN_IF_ERROR(check_frame(depth_m, K, T_prior_cam, stride_px, m.scene != nullptr));
 
   ScopedFlushDenormals ftz;
   FreeSpaceObserveStats stats;
@@ -446,7 +698,7 @@ core::Expected<FreeSpaceObserveStats> FreeSpaceCarver::observe(const cv::Mat& de
     // Pose check first (header): a sparse pass that only measures near / far rays and residuals.
     Impl::RayContext check;
     FreeSpaceObserveStats ignored;
-    m.cast(depth_m, K, T_prior_cam, stride_px * c.bias_check_subsample, /*vote=*/false, &check, &ignored);
+    m.cast(depth_m, K, T_prior_cam, stride_px * c.bias_check_subsample, Impl::Pass::kCheck, &check, &ignored);
     bool any_failed = false;
     for (int k = 0; k < kNormalClusters; ++k) {
       const size_t kk = static_cast<size_t>(k);
@@ -481,7 +733,7 @@ core::Expected<FreeSpaceObserveStats> FreeSpaceCarver::observe(const cv::Mat& de
                                                                 : PoseCheck::kAligned;
     stats.misaligned = stats.pose_check != PoseCheck::kAligned;
   }
-  if (!stats.misaligned) m.cast(depth_m, K, T_prior_cam, stride_px, /*vote=*/true, &rc, &stats);
+  if (!stats.misaligned) m.cast(depth_m, K, T_prior_cam, stride_px, Impl::Pass::kVote, &rc, &stats);
   stats.free_votes = rc.free_votes;
   stats.occupied_votes = rc.occupied_votes;
   HWR_RETURN_IF_ERROR(m.embree_status("free-space carver: casting rays"));

@@ -537,6 +537,7 @@ void finish(const NdtConfig& config, const Evaluation& cur, const Eigen::Vector3
   const Eigen::Matrix<double, 6, 6> Hs = d.asDiagonal() * cur.sums.hessian * d.asDiagonal();
   Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 6, 6>> es(Hs, Eigen::EigenvaluesOnly);
   const Eigen::Matrix<double, 6, 1> ev = es.eigenvalues();
+  result->eigenvalue_ratio = ev(5) > 0 ? ev(0) / ev(5) : 0.0;
   if (!(ev(0) > config.degenerate_eigenvalue_ratio * ev(5))) {
     result->converged = false;
     result->failure = NdtFailure::kDegenerate;

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <string>
 #include <utility>
 
 #include "hwr/core/log.hpp"
@@ -35,11 +36,22 @@ struct PriorMapUpdater::Impl {
   std::vector<FreeSpaceCarver> carvers;  // max_open_segments, reused
   std::vector<Open> open;
   std::vector<std::pair<double, size_t>> seen;
+  std::vector<int> in_view;      // open indices seen by this keyframe (capacity: max_open_segments)
+  std::vector<PriorView> views;  // their carvers for the pose refinement (same capacity)
+  // The last accepted refinement's correction T_refined * T_relocalized^-1 (prior frame): the
+  // relocalization's error is nearly constant over a stretch of keyframes, so it is the next guess.
+  // Its information is about zeta = (omega, v) in the prior's axes, v the displacement of the point
+  // correction_centre_prior (that keyframe's camera centre).
+  Eigen::Isometry3d correction = Eigen::Isometry3d::Identity();
+  Eigen::Matrix<double, 6, 6> correction_information = Eigen::Matrix<double, 6, 6>::Zero();
+  Eigen::Vector3d correction_centre_prior = Eigen::Vector3d::Zero();
   uint64_t tick = 0;
   PriorMapUpdaterCounters counters;
 
-  Impl(const PriorMapUpdaterConfig& c, const hal::PinholeIntrinsics& k, MapStore s)
-      : config(c), K(k), store(std::move(s)) {}
+  PriorPoseRefiner refiner;
+
+  Impl(const PriorMapUpdaterConfig& c, const hal::PinholeIntrinsics& k, MapStore s, PriorPoseRefiner r)
+      : config(c), K(k), store(std::move(s)), refiner(std::move(r)) {}
 
   core::Status close(size_t i, UpdatedSegmentSink* sink) {
     Open& o = open[i];
@@ -124,9 +136,18 @@ core::Expected<PriorMapUpdater> PriorMapUpdater::create(const std::string& prior
   if (!(config.reach_m > 0)) {
     return core::InvalidArgument("map update: reach_m must be positive");
   }
+  if (!(config.carried_information >= 0.0 && config.carried_information <= 1.0)) {
+    return core::InvalidArgument("map update: carried_information must be in [0, 1] (got " +
+                                 std::to_string(config.carried_information) + ")");
+  }
   auto store = MapStore::open_existing(prior_dir);
   if (!store.ok()) return store.status();
-  auto impl = std::make_unique<Impl>(config, K, std::move(store.value()));
+  auto refiner = PriorPoseRefiner::create(config.refine, K);
+  if (!refiner.ok()) return refiner.status();
+  auto impl = std::make_unique<Impl>(config, K, std::move(store.value()), std::move(refiner.value()));
+  impl->seen.reserve(static_cast<size_t>(config.max_open_segments) + 1);
+  impl->in_view.reserve(static_cast<size_t>(config.max_open_segments));
+  impl->views.reserve(static_cast<size_t>(config.max_open_segments));
   for (int i = 0; i < config.max_open_segments; ++i) {
     auto c = FreeSpaceCarver::create(config.carver, config.max_segment_points);
     if (!c.ok()) return c.status();
@@ -159,6 +180,7 @@ PriorMapUpdater& PriorMapUpdater::operator=(PriorMapUpdater&&) noexcept = defaul
 PriorMapUpdater::~PriorMapUpdater() = default;
 
 const PriorMapUpdaterCounters& PriorMapUpdater::counters() const { return impl_->counters; }
+const Eigen::Isometry3d& PriorMapUpdater::correction() const { return impl_->correction; }
 
 core::Status PriorMapUpdater::observe(const cv::Mat& depth_m, const Eigen::Isometry3d& T_prior_cam,
                                       UpdatedSegmentSink* sink) {
@@ -179,7 +201,8 @@ core::Status PriorMapUpdater::observe(const cv::Mat& depth_m, const Eigen::Isome
   }
   std::sort(m.seen.begin(), m.seen.end());
   if (m.seen.size() > m.carvers.size()) m.seen.resize(m.carvers.size());
-  std::vector<int> in_view;
+  std::vector<int>& in_view = m.in_view;
+  in_view.clear();
   core::Status first_error;
   for (const auto& [d, e] : m.seen) {
     auto o = m.open_entry(e, sink);
@@ -197,10 +220,53 @@ core::Status PriorMapUpdater::observe(const cv::Mat& depth_m, const Eigen::Isome
     ++m.counters.no_prior_in_view;
     return first_error;
   }
+  // 2. The pose, refined against every segment in view from the carried correction (header).
+  m.views.clear();
+  for (int i : in_view) {
+    const Impl::Open& o = m.open[static_cast<size_t>(i)];
+    m.views.push_back({&m.carvers[static_cast<size_t>(o.carver)], m.entries[o.entry].T_prior_segment});
+  }
+  PriorPoseGuess guess;
+  guess.T_prior_cam = m.correction * T_prior_cam;
+  guess.T_prior_cam_anchor = T_prior_cam;
+  // The carried information, decayed once per keyframe and moved to this camera: xi (camera frame)
+  // -> zeta here = N xi, N = diag(R, R) -> zeta at the old centre = P zeta, P = [I 0; [dc]x I]
+  // (a rotation omega about the old centre moves this one by omega x dc more).
+  m.correction_information *= m.config.carried_information;
+  {
+    Eigen::Matrix<double, 6, 6> N = Eigen::Matrix<double, 6, 6>::Zero();
+    N.topLeftCorner<3, 3>() = guess.T_prior_cam.linear();
+    N.bottomRightCorner<3, 3>() = guess.T_prior_cam.linear();
+    Eigen::Matrix<double, 6, 6> P = Eigen::Matrix<double, 6, 6>::Identity();
+    const Eigen::Vector3d dc = guess.T_prior_cam.translation() - m.correction_centre_prior;
+    P.bottomLeftCorner<3, 3>() << 0.0, -dc.z(), dc.y(), dc.z(), 0.0, -dc.x(), -dc.y(), dc.x(), 0.0;
+    const Eigen::Matrix<double, 6, 6> M = P * N;
+    guess.information = M.transpose() * m.correction_information * M;
+  }
+  auto refined = m.refiner.refine(m.views.data(), static_cast<int>(m.views.size()), depth_m, guess);
+  if (!refined.ok()) return refined.status();
+  switch (refined->result) {
+    case PoseRefinement::kConverged:
+      ++m.counters.poses_refined;
+      break;
+    case PoseRefinement::kNotConverged:
+      ++m.counters.refine_not_converged;
+      break;
+    case PoseRefinement::kTooFewRays:
+      ++m.counters.refine_too_few_rays;
+      break;
+    case PoseRefinement::kTooLarge:
+      ++m.counters.refine_too_large;
+      break;
+    case PoseRefinement::kOff:
+      break;
+  }
+  const Eigen::Isometry3d& T_prior_cam_used = refined->T_prior_cam;
   // 3. Carve every segment in view.
+  bool any_carved = false;
   for (int i : in_view) {
     Impl::Open& o = m.open[static_cast<size_t>(i)];
-    const Eigen::Isometry3d T_segment_cam = m.entries[o.entry].T_prior_segment.inverse() * T_prior_cam;
+    const Eigen::Isometry3d T_segment_cam = m.entries[o.entry].T_prior_segment.inverse() * T_prior_cam_used;
     auto stats = m.carvers[static_cast<size_t>(o.carver)].observe(depth_m, m.K, T_segment_cam,
                                                                   m.config.carve_stride_px);
     if (!stats.ok()) return stats.status();
@@ -208,7 +274,17 @@ core::Status PriorMapUpdater::observe(const cv::Mat& depth_m, const Eigen::Isome
       ++m.counters.frames_misaligned;
     } else {
       ++m.counters.frames_carved;
+      any_carved = true;
     }
+  }
+  // A refinement the carver's pose check confirmed in a view carries to the next keyframe.
+  if (refined->result == PoseRefinement::kConverged && any_carved) {
+    m.correction = T_prior_cam_used * T_prior_cam.inverse();
+    Eigen::Matrix<double, 6, 6> N = Eigen::Matrix<double, 6, 6>::Zero();
+    N.topLeftCorner<3, 3>() = T_prior_cam_used.linear();
+    N.bottomRightCorner<3, 3>() = T_prior_cam_used.linear();
+    m.correction_information = N * (refined->information + guess.information) * N.transpose();
+    m.correction_centre_prior = T_prior_cam_used.translation();
   }
   return first_error;
 }

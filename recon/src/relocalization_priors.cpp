@@ -119,6 +119,11 @@ core::Expected<PriorSensorFrames> prior_sensor_frames(const PriorMap& prior,
   } else {
     s += "none (" + out.enu.reason + ")";
   }
+  if (out.mag_valid && out.enu_valid && !out.enu_yaw_from_mag) {
+    // Two headings of the same frame: they differ by the declination error only. More points at a
+    // wrong declination, a wrong T_imu_cam or a disturbed magnetometer (mag_heading.hpp).
+    s += fmt("; mag - ENU psi %.2f deg", wrap_pi(out.mag.yaw_enu_world_rad - out.enu.yaw_rad) * kRadToDeg);
+  }
   out.summary = s;
   return out;
 }

@@ -9,7 +9,10 @@
 #include <numeric>
 #include <random>
 
+#include "hwr/core/so3.hpp"
 #include "hwr/estimation/descriptor.hpp"
+
+#include "hwr/recon/structure_points.hpp"
 
 namespace hwr::recon {
 namespace {
@@ -44,6 +47,17 @@ PoseDistance pose_distance(const Eigen::Isometry3d& A, const Eigen::Isometry3d& 
 
 bool finite_pose(const Eigen::Isometry3d& T) { return T.matrix().allFinite(); }
 
+// A coarse NDT result seeds the fine stage (and scores as a coarse rival) when its pose is finite, it
+// covers the source (inlier ratio) and it converged or only stopped early: out of iterations, or on a
+// voxel-face jump of the cost (line_search_failed). At 1-2 m voxels these are common outdoors and the
+// pose is still a good seed; the fine stage's convergence and degeneracy test judge the fit.
+bool coarse_usable(const NdtResult& r, double min_inlier_ratio) {
+  const bool stopped_early =
+      r.failure == NdtFailure::kLineSearchFailed || r.failure == NdtFailure::kMaxIterations;
+  return (r.converged || stopped_early) && finite_pose(r.T_target_source) &&
+         r.inlier_ratio >= min_inlier_ratio;
+}
+
 std::string format(const char* fmt, double a = 0, double b = 0, double c = 0, double d = 0) {
   char buf[256];
   std::snprintf(buf, sizeof(buf), fmt, a, b, c, d);
@@ -57,7 +71,7 @@ struct Hypothesis {
   int seed_keyframe = -1;  // the prior keyframe whose features (ORB) or pose seeded it; -1: none
   int orb_keyframe = -1;   // the prior keyframe whose RANSAC made T_seed (never reassigned); -1: none
   NdtResult coarse;
-  double coarse_score = -1;  // per source point; -1: not converged
+  double coarse_score = -1;  // per source point; -1: not usable (coarse_usable)
   NdtResult fine;
   double fine_score = -1;
   bool fine_run = false;
@@ -266,7 +280,7 @@ const char* relocalization_reason_name(RelocalizationReason r) {
 
 struct Relocalizer::Impl {
   Impl(const RelocalizerConfig& c, const hal::PinholeIntrinsics& k, int max_feat, NdtAligner coarse,
-       NdtAligner fine)
+       NdtAligner fine, NdtTarget score)
       : config(c),
         K(k),
         max_features(max_feat),
@@ -274,6 +288,7 @@ struct Relocalizer::Impl {
         ransac(max_feat),
         ndt_coarse(std::move(coarse)),
         ndt_fine(std::move(fine)),
+        score_target(std::move(score)),
         matches(static_cast<size_t>(max_feat)),
         correspondences(static_cast<size_t>(max_feat)),
         inlier_mask(static_cast<size_t>(max_feat)),
@@ -281,6 +296,11 @@ struct Relocalizer::Impl {
     hypotheses.reserve(static_cast<size_t>(2 * c.top_k + c.yaw_sweep_steps + 1));
   }
 
+  // NDT score of eq. 6.9 per structure point with the structure moved by T_prior_world, against the
+  // prior points gathered about it, voxelised at resolution_m. NaN when the target cannot be built
+  // (*error says why when the prior map could not be read).
+  double structure_score(PriorMap* prior, const Eigen::Isometry3d& T_prior_world, double resolution_m,
+                         RelocalizationCounters* counters, core::Status* error);
   // Gathers the prior points about `center` into `target` unless the last gather covers it.
   // The current keyframe's ORB matches with prior keyframe kf (its keypoints with depth, moved to the
   // prior frame), then RANSAC: T_cam_world of the result is the current camera's pose in the prior
@@ -338,6 +358,15 @@ struct Relocalizer::Impl {
   std::vector<int> selected;
   estimation::PoseRansac ransac;
   NdtAligner ndt_coarse, ndt_fine;
+  // Step e's structure margin: the local map's structure points (current world, packed xyz) and the
+  // prior target they are scored against, rebuilt per pose and resolution.
+  NdtTarget score_target;
+  std::vector<float> structure;
+  int n_structure = 0;
+  std::vector<float> fine_source;  // the fine stage's source (step d): structure + some of the rest
+  int n_fine_source = 0;
+  // The rivals' poses the priors allow and distinct from the best (step e), for the structure margin.
+  std::vector<Eigen::Isometry3d> rival_poses;
   std::vector<estimation::FeatureMatch> matches;
   std::vector<estimation::Correspondence> correspondences;
   std::vector<uint8_t> inlier_mask;
@@ -390,6 +419,22 @@ void Relocalizer::Impl::subsample_source(const PointsView& local) {
     const float* o = &source[static_cast<size_t>(i) * 3];
     extent_m = std::max(extent_m, (Eigen::Vector3d(o[0], o[1], o[2]) - centroid_world).norm());
   }
+}
+
+double Relocalizer::Impl::structure_score(PriorMap* prior, const Eigen::Isometry3d& T_prior_world,
+                                          double resolution_m, RelocalizationCounters* counters,
+                                          core::Status* error) {
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  PointsView view;
+  *error = gather_target(prior, T_prior_world * centroid_world, &view, counters);
+  if (!error->ok() || n_structure < 1) return nan;
+  if (!score_target.build(view, resolution_m).ok()) return nan;
+  // With the pivot at the origin the parameterisation's pose is T(x) p = Exp(phi) p + t (ndt.hpp).
+  Eigen::Matrix<double, 6, 1> x;
+  x.head<3>() = T_prior_world.translation();
+  x.tail<3>() = core::so3_log(T_prior_world.linear());
+  const PointsView points{structure.data(), n_structure, 3};
+  return -ndt_fine.evaluate(score_target, points, x, nullptr, nullptr) / n_structure;
 }
 
 core::Status Relocalizer::Impl::gather_target(PriorMap* prior, const Eigen::Vector3d& center,
@@ -502,7 +547,7 @@ core::Expected<Relocalizer> Relocalizer::create(const RelocalizerConfig& c, cons
        {c.candidate_sigma_factor, c.yaw_gate_sigmas, c.yaw_gate_margin_rad, c.dedup_m, c.dedup_rad,
         c.target_margin_m, c.min_inlier_ratio, c.min_score_margin, c.distinct_m, c.distinct_rad,
         c.max_ndt_correction_m, c.max_ndt_correction_rad, c.position_gate_sigmas, c.position_gate_margin_m,
-        c.verify_radius_m, c.verify_max_angle_rad, c.verify_px, c.verify_depth_frac}) {
+        c.verify_radius_m, c.verify_max_angle_rad, c.verify_px, c.verify_depth_frac, c.fine_ground_share}) {
     if (!(v >= 0) || !std::isfinite(v)) {
       return core::InvalidArgument(
           "relocalizer: sigma factors, gates, margins and thresholds must be finite and >= 0");
@@ -512,8 +557,20 @@ core::Expected<Relocalizer> Relocalizer::create(const RelocalizerConfig& c, cons
   if (!coarse.ok()) return core::InvalidArgument("relocalizer: ndt_coarse: " + coarse.status().message());
   auto fine = NdtAligner::create(c.ndt_fine);
   if (!fine.ok()) return core::InvalidArgument("relocalizer: ndt_fine: " + fine.status().message());
-  return Relocalizer(
-      std::make_unique<Impl>(c, K, max_features, std::move(coarse).value(), std::move(fine).value()));
+  if (c.min_structure_points < 1 || !(c.structure_voxel_m > 0) || !std::isfinite(c.structure_voxel_m) ||
+      !(c.structure_min_normal_z >= 0 && c.structure_min_normal_z <= 1)) {
+    return core::InvalidArgument(
+        "relocalizer: min_structure_points must be >= 1, structure_voxel_m > 0 and structure_min_normal_z "
+        "in [0, 1]");
+  }
+  // The structure scores' target: a ball of the local map's extent + target_margin_m at 0.25-1 m
+  // voxels holds a few thousand voxels; 65536 keeps it at ~13 MB instead of the aligners' 52 MB.
+  NdtConfig score_config = c.ndt_fine;
+  score_config.max_target_voxels = std::min(score_config.max_target_voxels, 65'536);
+  auto score = NdtTarget::create(score_config);
+  if (!score.ok()) return core::InvalidArgument("relocalizer: ndt_fine: " + score.status().message());
+  return Relocalizer(std::make_unique<Impl>(c, K, max_features, std::move(coarse).value(),
+                                            std::move(fine).value(), std::move(score).value()));
 }
 
 RelocalizationResult Relocalizer::relocalize(const RelocalizationQuery& q, PriorMap* prior) {
@@ -565,6 +622,30 @@ RelocalizationResult Relocalizer::relocalize(const RelocalizationQuery& q, Prior
             std::to_string(std::max(cfg.ndt_coarse.min_source_points, cfg.ndt_fine.min_source_points)));
   }
   const PointsView source{m.source.data(), m.n_source, 3};
+  StructurePointsConfig structure_config;
+  structure_config.voxel_m = cfg.structure_voxel_m;
+  structure_config.min_normal_z = cfg.structure_min_normal_z;
+  m.n_structure =
+      split_structure_points(m.source.data(), m.n_source, structure_config, &m.structure, &m.fine_source);
+  // The fine stage's source: with enough structure, all of it and at most fine_ground_share of its
+  // count from the rest (every k-th), so that the ground's in-plane pull on its voxel means does not
+  // outweigh the structure along x, y and yaw; else the whole subsampled local map.
+  if (m.n_structure >= cfg.min_structure_points) {
+    const int n_rest = static_cast<int>(m.fine_source.size() / 3);
+    const int keep = std::max(1, static_cast<int>(cfg.fine_ground_share * m.n_structure));
+    const int stride = std::max(1, (n_rest + keep - 1) / keep);
+    int kept = 0;
+    for (int i = 0; i < n_rest; i += stride, ++kept) {
+      std::copy_n(&m.fine_source[static_cast<size_t>(i) * 3], 3,
+                  &m.fine_source[static_cast<size_t>(kept) * 3]);
+    }
+    m.fine_source.resize(static_cast<size_t>(kept) * 3);
+    m.fine_source.insert(m.fine_source.end(), m.structure.begin(), m.structure.end());
+  } else {
+    m.fine_source.assign(m.source.begin(), m.source.begin() + static_cast<std::ptrdiff_t>(m.n_source) * 3);
+  }
+  m.n_fine_source = static_cast<int>(m.fine_source.size() / 3);
+  const PointsView fine_source{m.fine_source.data(), m.n_fine_source, 3};
   m.target_valid = false;
 
   // ---- a. candidates ----
@@ -713,7 +794,7 @@ RelocalizationResult Relocalizer::relocalize(const RelocalizationQuery& q, Prior
     if (!st.ok()) return done(RelocalizationReason::kPriorMapError, st.message());
     ++res.counters.ndt_runs;
     h.coarse = m.ndt_coarse.align(target, source, h.T_seed);
-    if (h.coarse.converged) {
+    if (coarse_usable(h.coarse, cfg.min_inlier_ratio)) {
       h.coarse_score = h.coarse.score / m.n_source;
       ++res.counters.ndt_converged;
     }
@@ -751,8 +832,8 @@ RelocalizationResult Relocalizer::relocalize(const RelocalizationQuery& q, Prior
     if (!st.ok()) return done(RelocalizationReason::kPriorMapError, st.message());
     ++res.counters.ndt_runs;
     h.fine_run = true;
-    h.fine = m.ndt_fine.align(target, source, h.coarse.T_target_source);
-    if (h.fine.converged) h.fine_score = h.fine.score / m.n_source;
+    h.fine = m.ndt_fine.align(target, fine_source, h.coarse.T_target_source);
+    if (h.fine.converged) h.fine_score = h.fine.score / m.n_fine_source;
     ++picked;
   }
   if (picked == 0) {
@@ -845,6 +926,8 @@ RelocalizationResult Relocalizer::relocalize(const RelocalizationQuery& q, Prior
   // ---- e. acceptance ----
   const Eigen::Isometry3d T = best->fine.T_target_source;
   res.T_prior_world = T;
+  res.T_prior_world_best_fit = T;
+  res.best_fit_valid = true;
   res.best_inlier_ratio = best->fine.inlier_ratio;
   res.best_from_orb = best->from_orb;
   res.best_orb_inliers = best->orb_inliers;
@@ -921,14 +1004,21 @@ RelocalizationResult Relocalizer::relocalize(const RelocalizationQuery& q, Prior
     return d.m > cfg.distinct_m || d.rad > cfg.distinct_rad;
   };
   double fine_rival = 0, coarse_rival = 0;
+  m.rival_poses.clear();
   for (const Hypothesis& h : m.hypotheses) {
     if (&h == best) continue;
+    bool fine_pose = false;
     if (h.fine_run && h.fine_score >= 0 && gates_ok(h.fine.T_target_source)) {
       ++res.rivals_evaluated;
-      if (distinct(h.fine.T_target_source)) fine_rival = std::max(fine_rival, h.fine_score);
+      if (distinct(h.fine.T_target_source)) {
+        fine_rival = std::max(fine_rival, h.fine_score);
+        m.rival_poses.push_back(h.fine.T_target_source);
+        fine_pose = true;
+      }
     }
     if (h.coarse_score >= 0 && distinct(h.coarse.T_target_source) && gates_ok(h.coarse.T_target_source)) {
       coarse_rival = std::max(coarse_rival, h.coarse_score);
+      if (!fine_pose) m.rival_poses.push_back(h.coarse.T_target_source);
     }
   }
   // NDT, coarse then fine, from a rival seed; true when a distinct rival was scored.
@@ -944,22 +1034,26 @@ RelocalizationResult Relocalizer::relocalize(const RelocalizationQuery& q, Prior
         r.coarse.failure == NdtFailure::kInvalidInput) {
       return core::Status::Ok();
     }
-    if (r.coarse.converged && distinct(r.coarse.T_target_source) && gates_ok(r.coarse.T_target_source)) {
-      coarse_rival = std::max(coarse_rival, r.coarse.score / m.n_source);
-    }
+    const bool coarse_rivals = coarse_usable(r.coarse, cfg.min_inlier_ratio) &&
+                               distinct(r.coarse.T_target_source) && gates_ok(r.coarse.T_target_source);
+    if (coarse_rivals) coarse_rival = std::max(coarse_rival, r.coarse.score / m.n_source);
     st = m.gather_target(prior, r.coarse.T_target_source * m.centroid_world, &target, &res.counters);
     if (!st.ok()) return st;
     ++res.counters.ndt_runs;
-    r.fine = m.ndt_fine.align(target, source, r.coarse.T_target_source);
+    r.fine = m.ndt_fine.align(target, fine_source, r.coarse.T_target_source);
     if (!finite_pose(r.fine.T_target_source) || r.fine.failure == NdtFailure::kNonFinite ||
         r.fine.failure == NdtFailure::kInvalidInput) {
+      if (coarse_rivals) m.rival_poses.push_back(r.coarse.T_target_source);
       return core::Status::Ok();
     }
     // Evaluated: NDT gave a pose. It competes when the priors allow it and it is distinct, converged
     // or not (fail closed: a rival that fits well but ran out of iterations still competes).
     ++res.rivals_evaluated;
     if (distinct(r.fine.T_target_source) && gates_ok(r.fine.T_target_source)) {
-      fine_rival = std::max(fine_rival, std::max(0.0, r.fine.score / m.n_source));
+      fine_rival = std::max(fine_rival, std::max(0.0, r.fine.score / m.n_fine_source));
+      m.rival_poses.push_back(r.fine.T_target_source);
+    } else if (coarse_rivals) {
+      m.rival_poses.push_back(r.coarse.T_target_source);
     }
     return core::Status::Ok();
   };
@@ -1020,9 +1114,34 @@ RelocalizationResult Relocalizer::relocalize(const RelocalizationQuery& q, Prior
       break;
     }
   }
-  const double fine_margin = (best->fine_score - fine_rival) / best->fine_score;
-  const double coarse_margin =
+  double fine_margin = (best->fine_score - fine_rival) / best->fine_score;
+  double coarse_margin =
       best->coarse_score > 0 ? (best->coarse_score - coarse_rival) / best->coarse_score : -1.0;
+  const char* margin_over = "all points";
+  if (m.n_structure >= cfg.min_structure_points) {
+    // Over the structure points, at the fine and the coarse finest resolutions, every rival at its
+    // own pose (the ground fits them all alike; structure_points.hpp).
+    margin_over = "structure points";
+    double best_resolution[2] = {0, 0};
+    for (double r : cfg.ndt_fine.resolutions_m) best_resolution[0] = r > 0 ? r : best_resolution[0];
+    for (double r : cfg.ndt_coarse.resolutions_m) best_resolution[1] = r > 0 ? r : best_resolution[1];
+    double margins[2] = {-1, -1};
+    for (int level = 0; level < 2; ++level) {
+      core::Status st;
+      const double s_best = m.structure_score(prior, T, best_resolution[level], &res.counters, &st);
+      if (!st.ok()) return done(RelocalizationReason::kPriorMapError, st.message());
+      double s_rival = 0;
+      for (const Eigen::Isometry3d& R : m.rival_poses) {
+        const double s_r = m.structure_score(prior, R, best_resolution[level], &res.counters, &st);
+        if (!st.ok()) return done(RelocalizationReason::kPriorMapError, st.message());
+        // A rival whose target could not be built is not known to score lower: fail closed.
+        s_rival = std::max(s_rival, std::isfinite(s_r) ? s_r : s_best);
+      }
+      if (std::isfinite(s_best) && s_best > 0) margins[level] = (s_best - s_rival) / s_best;
+    }
+    fine_margin = margins[0];
+    coarse_margin = margins[1];
+  }
   res.score_margin = std::min(fine_margin, coarse_margin);
   res.margin_known = res.rivals_evaluated > 0;
   if (!res.margin_known && !(q.position.valid && q.yaw_valid)) {
@@ -1034,17 +1153,19 @@ RelocalizationResult Relocalizer::relocalize(const RelocalizationQuery& q, Prior
                 "without both a position and a yaw prior that is not accepted");
   }
   if (!(res.score_margin >= cfg.min_score_margin)) {
-    return done(
-        RelocalizationReason::kAmbiguous,
-        format("relocalizer: a distinct pose fits almost as well (score margin fine %.2f, coarse %.2f, "
-               "need %.2f; %.0f rivals evaluated)",
-               fine_margin, coarse_margin, cfg.min_score_margin, res.rivals_evaluated));
+    return done(RelocalizationReason::kAmbiguous,
+                std::string("relocalizer: a distinct pose fits almost as well (score margin over ") +
+                    margin_over +
+                    format(" fine %.2f, coarse %.2f, need %.2f; %.0f rivals evaluated)", fine_margin,
+                           coarse_margin, cfg.min_score_margin, res.rivals_evaluated));
   }
   return done(
       RelocalizationReason::kLocalized,
       format("relocalizer: localized, inlier ratio %.2f, score margin %.2f over %.0f rivals, %.0f ORB "
              "inliers",
              best->fine.inlier_ratio, res.score_margin, res.rivals_evaluated, best->orb_inliers) +
+          " (margin over " + margin_over +
+          format(", fine eigenvalue ratio %.4f)", best->fine.eigenvalue_ratio) +
           (res.margin_known ? "" : " (no rival: the position and yaw priors pin the pose)"));
 }
 

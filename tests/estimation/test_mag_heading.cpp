@@ -254,6 +254,69 @@ TEST(MagHeading, GivenNoisySamplesAtRollAndPitchUpToThirtyDegreesWhenEstimatedTh
   EXPECT_GT(min_uncompensated_err, 2.0 * kDeg);
 }
 
+// The simulator's camera mount (hal/sim scenario.cpp camera_T_imu_cam): x_cam = -y_imu,
+// y_cam = -z_imu, z_cam = x_imu, then pitched down 18 deg about the IMU y axis.
+Eigen::Matrix3d sim_R_imu_cam() {
+  Eigen::Matrix3d R_level;
+  R_level.col(0) = -Eigen::Vector3d::UnitY();
+  R_level.col(1) = -Eigen::Vector3d::UnitZ();
+  R_level.col(2) = Eigen::Vector3d::UnitX();
+  return Eigen::AngleAxisd(18.0 * kDeg, Eigen::Vector3d::UnitY()).toRotationMatrix() * R_level;
+}
+
+TEST(MagHeading, GivenAWrongCameraImuMountOnALoopWhenEstimatedThenNoHeadingInsteadOfAWrongOne) {
+  // GIVEN a loop (a 10 m circle, a sample triple every degree, heading along the path) in an
+  // undisturbed field, world yaw psi; the IMU's attitudes as a caller computes them from the camera
+  // poses: R_world_imu = R_world_cam R_imu_cam^-1, once with the right mount and once with an
+  // identity T_imu_cam (the prior map store of issue #6's outdoor bench recorded one).
+  const double psi = -6.8 * kDeg;
+  const Eigen::Vector3d B_enu = field_enu(20.0, 40.0, 0.0);
+  const Eigen::Matrix3d R_imu_cam = sim_R_imu_cam();
+  std::mt19937 rng(23);
+  MagHeadingEstimator right, wrong, wrong_no_majority([] {
+    MagHeadingConfig c;
+    c.min_used_fraction = 0.0;  // the estimator without the majority rule
+    return c;
+  }());
+  for (int step = 0; step < 360; ++step) {
+    const double a = step * kDeg;
+    const Eigen::Vector3d p_world_m(10.0 * std::cos(a), 10.0 * std::sin(a), 0.3);
+    for (int k = 0; k < 3; ++k) {
+      const Eigen::Matrix3d R_world_imu = rz(a + 0.5 * M_PI + 0.005 * k);
+      const hal::MagSample m = sample(reading(B_enu, psi, R_world_imu) + 0.3 * normal3(&rng));
+      const Eigen::Matrix3d R_world_cam = R_world_imu * R_imu_cam;
+      right.add(m, pose(R_world_cam * R_imu_cam.transpose(), p_world_m));
+      wrong.add(m, pose(R_world_cam, p_world_m));  // T_imu_cam taken as the identity
+      wrong_no_majority.add(m, pose(R_world_cam, p_world_m));
+    }
+  }
+  // WHEN estimated THEN the right mount gives psi, every sample agreeing
+  const MagHeadingResult r = right.result();
+  ASSERT_TRUE(r.valid) << r.reason;
+  EXPECT_LT(std::abs(angle_diff(r.yaw_enu_world_rad, psi)), 3.0 * r.sigma_rad);
+  EXPECT_EQ(r.used, 1080u);
+  EXPECT_DOUBLE_EQ(r.used_fraction, 1.0);
+  // AND the wrong mount sweeps the world-frame field with the robot's heading: only a minority of
+  // the places agrees, and there is no heading, the reason naming T_imu_cam
+  const MagHeadingResult w = wrong.result();
+  const MagHeadingResult n = wrong_no_majority.result();
+  std::printf(
+      "wrong mount: %zu of %zu used (%.1f%% of the places); without the majority rule psi %.2f deg "
+      "sigma %.2f deg (truth %.2f deg); reason: %s\n",
+      w.used, w.stored, 100.0 * w.used_fraction, n.yaw_enu_world_rad / kDeg, n.sigma_rad / kDeg, psi / kDeg,
+      w.reason.c_str());
+  EXPECT_FALSE(w.valid);
+  EXPECT_EQ(w.yaw_enu_world_rad, 0.0);
+  EXPECT_LT(w.used_fraction, 0.5);
+  EXPECT_GT(w.used, 0u);
+  EXPECT_NE(w.reason.find("T_imu_cam"), std::string::npos) << w.reason;
+  EXPECT_NE(w.reason.find("visited places"), std::string::npos) << w.reason;
+  // (Without the rule the minority's heading came back, confidently and far off the truth.)
+  ASSERT_TRUE(n.valid) << n.reason;
+  EXPECT_DOUBLE_EQ(n.used_fraction, w.used_fraction);
+  EXPECT_GT(std::abs(angle_diff(n.yaw_enu_world_rad, psi)), 10.0 * n.sigma_rad);
+}
+
 TEST(MagHeading, GivenWhiteNoiseWhenRepeatedThenSigmaMatchesTheSpreadOfTheEstimate) {
   std::mt19937 rng(7);
   std::uniform_real_distribution<double> angle(-M_PI, M_PI), tilt(-0.3, 0.3);

@@ -14,12 +14,14 @@
 #include <tuple>
 #include <vector>
 
+#include <Eigen/Eigenvalues>
 #include <gtest/gtest.h>
 #include <opencv2/core.hpp>
 
 #include "hwr/core/alloc_counter.hpp"
 #include "hwr/core/arena.hpp"
 #include "hwr/recon/free_space_carver.hpp"
+#include "hwr/recon/prior_pose_refiner.hpp"
 #include "hwr/recon/keyframe_cloud.hpp"
 #include "hwr/recon/voxel_map.hpp"
 
@@ -55,7 +57,8 @@ double ray_box(const Eigen::Vector3d& o, const Eigen::Vector3d& d, const Box& b)
 // Depth image of the boxes: with d_cam.z = 1 the ray parameter is the z-depth. Gaussian noise
 // sigma = kDepthNoiseK z² and a fraction of NaN pixels; nothing hit -> 0 (invalid).
 cv::Mat render_depth(const std::vector<Box>& scene, const hal::PinholeIntrinsics& K,
-                     const Eigen::Isometry3d& T_world_cam, double nan_fraction, std::mt19937* rng) {
+                     const Eigen::Isometry3d& T_world_cam, double nan_fraction, std::mt19937* rng,
+                     double noise_k = kDepthNoiseK) {
   cv::Mat depth(K.height, K.width, CV_32FC1);
   std::normal_distribution<double> gauss(0.0, 1.0);
   std::uniform_real_distribution<double> uni(0.0, 1.0);
@@ -66,7 +69,7 @@ cv::Mat render_depth(const std::vector<Box>& scene, const hal::PinholeIntrinsics
           T_world_cam.linear() * Eigen::Vector3d((u - K.cx) / K.fx, (v - K.cy) / K.fy, 1.0);
       double z = std::numeric_limits<double>::infinity();
       for (const Box& b : scene) z = std::min(z, ray_box(o, d, b));
-      const double noise = gauss(*rng) * kDepthNoiseK * z * z;
+      const double noise = gauss(*rng) * noise_k * z * z;
       float out = std::isfinite(z) ? static_cast<float>(z + noise) : 0.0f;
       if (uni(*rng) < nan_fraction) out = kNaN;
       depth.at<float>(v, u) = out;
@@ -322,6 +325,161 @@ TEST(FreeSpaceCarver, GivenAMovedPlateThenItsOldPlaceIsCarvedAndStaticSurfacesAr
               old_raised, old_cells, new_raised, new_cells);
   EXPECT_LE(old_raised, 0.05 * old_cells);
   EXPECT_GE(new_raised, 0.9 * new_cells);
+}
+
+// measure_planes (the pose refinement's measured planes): on noise-free depth of the lab's floor and
+// wall (and a noise model to match: tolerances of 1e-5 z²), every plane's endpoint lies on a box
+// face and its normal is that face's, towards the camera; the windows across the floor-wall crease
+// are skipped. With the test's noise (0.001 z²) the crease planes that pass are within the noise.
+TEST(FreeSpaceCarver, GivenNoiseFreeDepthThenTheMeasuredPlanesAreTheScenesFaces) {
+  const hal::PinholeIntrinsics K = camera(320, 240, 260.0);
+  const Eigen::Isometry3d T_world_cam = look_at({0.2, -1.0, 0.6}, {3.0, 0.5, 0.3});  // floor and wall
+  std::mt19937 rng(3);
+  const cv::Mat depth = render_depth({kFloor, kWall}, K, T_world_cam, 0.0, &rng, 0.0);
+  FreeSpaceCarverConfig exact;
+  exact.depth_noise_k = 1e-5f;
+  FreeSpaceCarver carver = make_carver(1, exact);
+  PlaneSamplingParams p;
+  p.stride_px = 4;
+  p.offset_px = 2;
+  std::vector<MeasuredPlane> planes(80 * 60);
+  core::AllocationScope scope;
+  auto n = carver.measure_planes(depth, K, p, planes.data(), static_cast<int>(planes.size()));
+  EXPECT_EQ(scope.allocations(), 0u);
+  ASSERT_TRUE(n.ok()) << n.status().message();
+  int on_floor = 0, on_wall = 0;
+  double worst_m = 0, worst_deg = 0;
+  for (int i = 0; i < *n; ++i) {
+    const MeasuredPlane& mp = planes[static_cast<size_t>(i)];
+    const Eigen::Vector3d q = T_world_cam * (mp.z_m * mp.d_cam).cast<double>();
+    const Eigen::Vector3d n_world = T_world_cam.linear() * mp.n_cam.cast<double>();
+    const bool floor = std::abs(q.z()) < std::abs(q.x() - 3.0);
+    const Eigen::Vector3d n_true = floor ? Eigen::Vector3d(0.0, 0.0, 1.0) : Eigen::Vector3d(-1.0, 0.0, 0.0);
+    worst_m = std::max(worst_m, floor ? std::abs(q.z()) : std::abs(q.x() - 3.0));
+    worst_deg = std::max(worst_deg, std::acos(std::min(1.0, n_world.dot(n_true))) * 180.0 / M_PI);
+    (floor ? on_floor : on_wall)++;
+  }
+  std::printf("[ info     ] measured planes: %d on the floor, %d on the wall, worst %.2e m / %.3f deg off\n",
+              on_floor, on_wall, worst_m, worst_deg);
+  EXPECT_GT(on_floor, 1000);
+  EXPECT_GT(on_wall, 1000);
+  EXPECT_LT(worst_m, 1e-4);
+  EXPECT_LT(worst_deg, 0.05);
+  // The test's noise model on noisy depth: a few crease planes pass, tilted within the noise.
+  const cv::Mat noisy = render_depth({kFloor, kWall}, K, T_world_cam, 0.02, &rng);
+  FreeSpaceCarver noisy_carver = make_carver(1);
+  n = noisy_carver.measure_planes(noisy, K, p, planes.data(), static_cast<int>(planes.size()));
+  ASSERT_TRUE(n.ok());
+  int within_5mm = 0;
+  for (int i = 0; i < *n; ++i) {
+    const MeasuredPlane& mp = planes[static_cast<size_t>(i)];
+    const Eigen::Vector3d q = T_world_cam * (mp.z_m * mp.d_cam).cast<double>();
+    within_5mm += std::min(std::abs(q.z()), std::abs(q.x() - 3.0)) < 0.005 ? 1 : 0;
+  }
+  std::printf("[ info     ] noisy depth: %d planes, %d within 5 mm of a face\n", *n, within_5mm);
+  EXPECT_GT(*n, 2000);
+  EXPECT_GE(within_5mm, 0.995 * *n);
+  // Bad inputs.
+  EXPECT_EQ(carver.measure_planes(depth, K, p, nullptr, 10).status().code(),
+            core::ErrorCode::kInvalidArgument);
+  p.plane_radius_px = 0;
+  EXPECT_EQ(carver.measure_planes(depth, K, p, planes.data(), 10).status().code(),
+            core::ErrorCode::kInvalidArgument);
+  PointToPlaneSystem system;
+  EXPECT_EQ(carver.accumulate_point_to_plane(planes.data(), 1, T_world_cam, {}, &system).code(),
+            core::ErrorCode::kInvalidArgument);  // no prior yet
+}
+
+// Pose refinement (prior_pose_refiner.hpp) in the lab corner: each of the 8 views of run 2 starts
+// 2 cm / 0.3 deg off (its own error: no carried correction), is refined against the prior, then
+// carved. Oracles: the true poses and the labels. What a view constrains depends on what it sees
+// (floor and wall: the height, the wall's normal and the rotations; a far floor band alone: height
+// and pitch only together), so the error is judged along the directions the returned information
+// constrains to sigma <= 1 mm (the rotation scaled by the refiner's lever), and by the carving.
+TEST(FreeSpaceCarver, GivenRelocalizationSizedErrorsThenRefinedPosesCarveTheLab) {
+  std::mt19937 rng(7);
+  Prior prior = lab_prior(&rng);
+  FreeSpaceCarver carver = make_carver(static_cast<int>(prior.points.size()));
+  ASSERT_TRUE(carver.set_prior(prior.points.data(), static_cast<int>(prior.points.size())).ok());
+  const hal::PinholeIntrinsics K = camera(320, 240, 260.0);
+  PriorPoseRefinerConfig rc;
+  rc.stride_px = 4;  // 320 x 240: the 4 800 rays of 640 x 480 at stride 8
+  rc.offset_px = 2;
+  rc.max_depth_m = carver.config().max_depth_m;
+  rc.depth_noise_m0 = 0.0f;  // the test's noise is k z² alone
+  auto refiner = PriorPoseRefiner::create(rc, K);
+  ASSERT_TRUE(refiner.ok()) << refiner.status().message();
+  const PriorView view{&carver, Eigen::Isometry3d::Identity()};
+  const std::vector<Eigen::Isometry3d> views = {
+      look_at({0.5, -0.3, 1.0}, {1.5, -0.3, 0.0}), look_at({0.6, 0.5, 0.9}, {1.5, -0.2, 0.0}),
+      look_at({0.5, -1.1, 1.0}, {1.5, -0.2, 0.0}), look_at({2.4, -0.3, 1.1}, {1.5, -0.3, 0.0}),
+      look_at({1.5, -1.2, 1.2}, {1.5, -0.3, 0.0}), look_at({0.0, 0.0, 1.2}, {3.0, 0.0, 0.8}),
+      look_at({0.2, -1.0, 0.6}, {3.0, 0.5, 0.3}),  look_at({0.3, 1.0, 0.8}, {3.0, -0.8, 0.5}),
+  };
+  Eigen::Matrix<double, 6, 1> S;
+  S << 1 / rc.lever_m, 1 / rc.lever_m, 1 / rc.lever_m, 1, 1, 1;
+  int aligned = 0, i = 0, directions = 0;
+  double worst_before_m = 0, worst_after_m = 0;
+  for (const Eigen::Isometry3d& T_world_cam : views) {
+    // 2 cm and 0.3 deg, a different direction for every view.
+    Eigen::Isometry3d error = Eigen::Isometry3d::Identity();
+    const Eigen::Vector3d axis = Eigen::Vector3d(std::sin(i), std::cos(1.3 * i), 0.7).normalized();
+    error.linear() = Eigen::AngleAxisd(0.3 * M_PI / 180.0, axis).toRotationMatrix();
+    error.translation() =
+        0.02 * Eigen::Vector3d(std::cos(2.1 * i), std::sin(0.7 * i + 1.0), 0.6).normalized();
+    ++i;
+    const cv::Mat depth = render_depth({kFloor, kWall, kPlateNew}, K, T_world_cam, 0.02, &rng);
+    PriorPoseGuess guess;
+    guess.T_prior_cam = guess.T_prior_cam_anchor = T_world_cam * error;
+    core::AllocationScope scope;
+    auto r = refiner->refine(&view, 1, depth, guess);
+    EXPECT_EQ(scope.allocations(), 0u);
+    ASSERT_TRUE(r.ok()) << r.status().message();
+    EXPECT_EQ(r->result, PoseRefinement::kConverged);
+    // The error as xi (T_true = T exp(xi), camera frame), along the well-constrained directions.
+    auto scaled_xi = [&](const Eigen::Isometry3d& T) {
+      const Eigen::Isometry3d d = T.inverse() * T_world_cam;
+      const Eigen::AngleAxisd aa(d.linear());
+      Eigen::Matrix<double, 6, 1> xi;
+      xi.head<3>() = rc.lever_m * aa.angle() * aa.axis();
+      xi.tail<3>() = d.translation();
+      return xi;
+    };
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 6, 6>> eig(S.asDiagonal() * r->information *
+                                                                         S.asDiagonal());
+    int view_dirs = 0;
+    for (int k = 0; k < 6; ++k) {
+      if (!(eig.eigenvalues()(k) >= 1e6)) continue;  // sigma <= 1 mm
+      ++view_dirs;
+      const Eigen::Matrix<double, 6, 1> u = eig.eigenvectors().col(k);
+      worst_before_m = std::max(worst_before_m, std::abs(u.dot(scaled_xi(guess.T_prior_cam))));
+      worst_after_m = std::max(worst_after_m, std::abs(u.dot(scaled_xi(r->T_prior_cam))));
+    }
+    directions += view_dirs;
+    auto st = carver.observe(depth, K, r->T_prior_cam, 1);
+    ASSERT_TRUE(st.ok());
+    aligned += st->misaligned ? 0 : 1;
+    const Eigen::Isometry3d d = T_world_cam.inverse() * r->T_prior_cam;
+    const Eigen::Vector3d e_world = T_world_cam.linear() * d.translation();  // camera centre error
+    std::printf(
+        "[ info     ] view %d: %s in %d it, %d dims moved, %d with sigma <= 1 mm; centre %.1f %.1f %.1f mm, "
+        "%.3f deg off; %s\n",
+        i, to_string(r->result), r->iterations, r->constrained_dims, view_dirs, e_world.x() * 1e3,
+        e_world.y() * 1e3, e_world.z() * 1e3, Eigen::AngleAxisd(d.linear()).angle() * 180.0 / M_PI,
+        describe(*st).c_str());
+  }
+  const Tally gone = tally(carver, prior, Label::kGone);
+  const Tally stat = tally(carver, prior, Label::kStatic);
+  std::printf(
+      "[ info     ] along %d well-constrained directions the error went from at most %.1f mm to %.2f mm\n",
+      directions, worst_before_m * 1e3, worst_after_m * 1e3);
+  print_tallies("refined from 2 cm / 0.3 deg", gone, stat);
+  EXPECT_GE(directions, 16);
+  EXPECT_GE(worst_before_m, 0.005);
+  EXPECT_LE(worst_after_m, 0.002);
+  EXPECT_GE(aligned, 7);
+  EXPECT_GE(gone.deleted, 0.9 * gone.total);
+  EXPECT_LE(stat.deleted, 0.01 * stat.observed);
 }
 
 // A pose error is the same for every ray of a frame, so votes cannot average it out; the pose check

@@ -55,6 +55,26 @@
 //    Quartiles resist changed geometry inside the window as long as it is the minority; changes
 //    beyond the window count against the near fraction (a largely changed view keeps the prior).
 
+// Point-to-plane normal equations for pose refinement (prior_pose_refiner.hpp, issue #6 item 3):
+//  - measure_planes() fits the local plane of every sampled pixel by least squares of 1/z over
+//    ±plane_radius_px (7 x 7 samples; fewer than 3/4 valid, or residuals beyond the noise of 1/z: a
+//    window across a crease or an edge, and the pixel is skipped). The ±2 px differences of the carving pass
+//    tilt normals by tens of degrees at 2-3 m (measured: the lab's floor pixels then fall into wall
+//    clusters); such normals invent constraints (a floor seen with them seems to fix the lateral
+//    translation, which then random-walks over the iterations). The fit's depth at the pixel is the
+//    endpoint q_m: it averages the range noise of ~49 pixels.
+//  - accumulate_point_to_plane() casts those rays into the same spheres from T_prior_cam. Per ray
+//    the prior points within ±c of the measured plane give r = n̂·(p̄ − q_m), p̄ their mean weighted
+//    by Tukey's biweight of their height s (c = min(window_m, c_σ σ_ray)) times a biweight of their
+//    distance to the ray over point_radius_m (so that points entering or leaving the ray's reach as
+//    the pose moves change p̄ continuously); the prior surface's thickness (2 cm voxel means, several
+//    mm) averages out along the ray. For the right perturbation T_prior_cam · exp(ξ), ξ = (ω, v) in
+//    the camera frame, the measured point and normal stay put in the camera and the prior moves by
+//    exp(−ξ): r(ξ) = r + [(n_c × p_c)ᵀ, −n_cᵀ] ξ (p_c = T_prior_cam⁻¹ p̄). Each ray adds w JᵀJ and
+//    w J r, w = (mean weight) / σ_ray², σ_ray² = margin_min_m² + (depth_noise_k z² |d| cos θ)² / N
+//    (the prior's own noise, and the range noise of the fitted endpoint along the normal). The
+//    camera-frame ξ makes the systems of several carvers (segments, each in its own frame) add up.
+
 // Embree: one RTC_GEOMETRY_TYPE_SPHERE_POINT geometry over a buffer sized at create(); every hit
 // along a ray is classified in an intersection filter callback that then rejects it, so one BVH
 // traversal per ray visits every sphere the ray crosses in [0, tfar] (rtcOccluded1 / re-cast loops
@@ -153,6 +173,56 @@ struct FreeSpaceObserveStats {
   std::array<SurfaceClusterCheck, kNormalClusters> clusters{};
 };
 
+// Which pixels measure_planes() samples, and how it fits their local plane (header).
+struct PlaneSamplingParams {
+  int stride_px = 8;        // every stride_px-th pixel in u and v ...
+  int offset_px = 4;        // ... from this pixel (the pose check's rays start at 0)
+  int plane_radius_px = 6;  // local plane: least squares over ±this ...
+  int plane_step_px = 2;    // ... every this many pixels (7 x 7 samples)
+  // Planes farther than this are not measured; <= 0: the carver's max_depth_m. (Pose refinement
+  // gains from surfaces too noisy to carve: the fit averages their range noise.)
+  float max_depth_m = 0;
+  // Depth noise sigma_z = depth_noise_m0 + depth_noise_k z² (k from the carver's config), so 1/z has
+  // sigma_w = k + m0 / z². A plane is kept when no sample's 1/z departs from the fit by more than
+  // max_dev_sigmas sigma_w (+ 0.1 planarity_rel of 1/z: curvature) and their RMS is at most
+  // max_rms_sigmas sigma_w.
+  float depth_noise_m0 = 0;
+  float max_dev_sigmas = 4.5f;
+  float max_rms_sigmas = 1.5f;
+};
+
+// A pixel's ray and its measured local plane, in the camera frame (measure_planes()).
+struct MeasuredPlane {
+  Eigen::Vector3f d_cam = Eigen::Vector3f::Zero();  // K^-1 [u v 1]^T (z = 1)
+  float z_m = 0;                                    // the plane's depth at the pixel: q_m = z_m d_cam
+  Eigen::Vector3f n_cam = Eigen::Vector3f::Zero();  // unit normal, towards the camera
+  float cos_inc = 0;                                // incidence cosine of the ray
+  float sigma_m = 0;                                // σ_ray of the residual along the normal
+};
+
+// How accumulate_point_to_plane() pairs prior points with a ray (header).
+struct PointToPlaneParams {
+  float window_m = 0.06f;    // prior points with |s| below this enter the ray's mean
+  float tukey_c_sigmas = 0;  // Tukey c in σ_ray (capped by window_m); <= 0: window_m alone
+};
+
+// Normal equations of one Gauss-Newton step, ξ = (ω rad, v m) in the camera frame (header). Fixed
+// size: accumulating allocates nothing. clear() before a step; several carvers add into one.
+struct PointToPlaneSystem {
+  static constexpr int kResidualBins = 256;
+  static constexpr float kResidualBinSigmas = 0.05f;  // |r| / σ_ray histogram: 0 .. 12.8 σ
+  Eigen::Matrix<double, 6, 6> H = Eigen::Matrix<double, 6, 6>::Zero();
+  Eigen::Matrix<double, 6, 1> g = Eigen::Matrix<double, 6, 1>::Zero();
+  double cost = 0;                                          // Σ w r²
+  double weight = 0;                                        // Σ w
+  int rays_cast = 0;                                        // planar pixels cast
+  int residuals = 0;                                        // ... of which met prior points within the window
+  std::array<uint32_t, kResidualBins> abs_residual_hist{};  // |r| / σ_ray (the last bin holds the tail)
+  void clear() { *this = PointToPlaneSystem(); }
+  // Median of |r| / σ_ray over the residuals (bin centre); 0 when there are none.
+  float median_abs_residual_sigmas() const;
+};
+
 class FreeSpaceCarver {
  public:
   // Errors (kInvalidArgument): non-positive or non-finite config values, min_depth_m >= max_depth_m,
@@ -173,6 +243,23 @@ class FreeSpaceCarver {
   // size, invalid intrinsics, stride_px < 1, T_prior_cam not a finite rigid transform.
   core::Expected<FreeSpaceObserveStats> observe(const cv::Mat& depth_m, const hal::PinholeIntrinsics& K,
                                                 const Eigen::Isometry3d& T_prior_cam, int stride_px);
+
+  // The local planes of depth_m at the pixels params samples, for accumulate_point_to_plane (header;
+  // the carver's config gives the depth range, noise, planarity and incidence limits). Writes at most
+  // capacity planes to out and returns how many. Allocates nothing. Errors (kInvalidArgument): as
+  // observe() for the image and intrinsics, stride_px < 1, offset_px < 0, plane_radius_px or
+  // plane_step_px < 1, out null with capacity > 0.
+  core::Expected<int> measure_planes(const cv::Mat& depth_m, const hal::PinholeIntrinsics& K,
+                                     const PlaneSamplingParams& params, MeasuredPlane* out,
+                                     int capacity) const;
+
+  // Adds the point-to-plane residuals of planes[0, n_planes) cast from T_prior_cam (prior = this
+  // carver's frame) to *system (header). Counters and votes are untouched; allocates nothing.
+  // Errors (kInvalidArgument): planes null with n_planes > 0, system null, window_m not positive,
+  // T_prior_cam not rigid, no set_prior() yet.
+  core::Status accumulate_point_to_plane(const MeasuredPlane* planes, int n_planes,
+                                         const Eigen::Isometry3d& T_prior_cam,
+                                         const PointToPlaneParams& params, PointToPlaneSystem* system);
 
   int prior_size() const;
   int capacity() const;

@@ -112,6 +112,9 @@ struct NdtResult {
   int levels = 0;            // levels run
   int nonfinite_points = 0;  // source points skipped because a coordinate was NaN or inf
   int correspondences = 0;   // source points with a correspondence at the result
+  // The degeneracy test's measure at a converged result: the scaled Hessian's smallest eigenvalue over
+  // its largest (NdtConfig::degenerate_eigenvalue_ratio); 0 when not judged.
+  double eigenvalue_ratio = 0;
 };
 
 // The target's voxel Gaussians at one resolution. Fixed capacity; rebuilt with build().

@@ -13,12 +13,16 @@
 //  2. The pose: carving needs T_prior_cam to ~2 mm / 0.1 deg (free_space_carver.hpp); a frame
 //     whose pose disagrees with the prior beyond that along a checked surface's normal fails the
 //     carver's pose check and casts no votes (fail closed: a wrong pose would delete what is still
-//     there). Not built: a local refinement of each keyframe against the prior. Tried here and
-//     removed: NDT (keyframe cloud vs the segment's points, resolutions down to 0.1 m) moved exact
-//     poses by 3-80 mm on the sim lab; a point-to-plane Gauss-Newton moved them by 1-11 mm and
-//     did not converge from 2 cm (one noisy keyframe against 2 cm voxel means whose surfaces are
-//     ~6 mm thick, with weakly constrained directions). So with today's relocalization accuracy
-//     (1-2 cm) most frames fail the check and little is carved; see docs/prior_map_update.md.
+//     there). The relocalization gives 1-6 cm / 0.3 deg, so each keyframe's pose is refined first
+//     against every open segment in view (PriorPoseRefiner, prior_pose_refiner.hpp: point-to-plane
+//     Gauss-Newton on the carvers' own rays, in the well-constrained directions only). The
+//     relocalization's error is nearly constant over a stretch of keyframes, so the last accepted
+//     correction T_refined * T_relocalized^-1 is the next keyframe's guess, and its information
+//     (decayed by carried_information per keyframe, moved to the new camera) a prior on the next
+//     correction: directions the new view hardly sees stay where earlier views put them. A refinement
+//     is accepted (carried) when it converged and the carver's check passed in at least one view; one
+//     that does not converge, or moves more than 8 cm / 1.15 deg from the relocalized pose, leaves
+//     the guess, and the check decides (fail closed).
 //  3. FreeSpaceCarver::observe of every seen open segment with T_segment_cam = T_prior_segment^-1 *
 //     T_prior_cam.
 // Closing a segment (a fourth one is needed, or finish()): FreeSpaceCarver::apply removes the
@@ -46,6 +50,7 @@
 #include "hwr/recon/free_space_carver.hpp"
 #include "hwr/recon/keyframe_cloud.hpp"
 #include "hwr/recon/map_store.hpp"
+#include "hwr/recon/prior_pose_refiner.hpp"
 
 namespace hwr::recon {
 
@@ -68,6 +73,11 @@ struct PriorMapUpdaterConfig {
   int max_open_segments = 3;           // segments held with their carver
   int max_segment_points = 1'000'000;  // carver capacity; a bigger segment is not carved (counted)
   double reach_m = 8.0;  // a segment's points lie within this of its keyframes (KeyframeCloudConfig max)
+  // Step 2: each keyframe's T_prior_cam refined against the segments in view (prior_pose_refiner.hpp).
+  PriorPoseRefinerConfig refine;
+  // Fraction of the last accepted refinement's information carried to the next keyframe (a prior
+  // on its correction, prior_pose_refiner.hpp); 0: each keyframe on its own.
+  double carried_information = 0.7;
 };
 
 struct PriorMapUpdaterCounters {
@@ -75,6 +85,10 @@ struct PriorMapUpdaterCounters {
   uint64_t no_prior_in_view = 0;   // no prior segment near the camera
   uint64_t frames_carved = 0;      // (keyframe, segment) observations that voted
   uint64_t frames_misaligned = 0;  // ... rejected by the carver's pose check
+  // Step 2, per keyframe with a prior segment in view (PoseRefinement): refined, or carved with the
+  // guess (the relocalized pose times the carried correction) when the refinement did not converge,
+  // met too few prior points, or went beyond max_correction_*.
+  uint64_t poses_refined = 0, refine_not_converged = 0, refine_too_few_rays = 0, refine_too_large = 0;
   uint64_t segments_opened = 0, segments_updated = 0, segments_too_big = 0;
   int64_t points_deleted = 0;
 };
@@ -105,6 +119,9 @@ class PriorMapUpdater {
   core::Status finish(UpdatedSegmentSink* sink);
 
   const PriorMapUpdaterCounters& counters() const;
+  // The correction carried to the next keyframe: T_refined * T_relocalized^-1 of the last accepted
+  // refinement (identity before one).
+  const Eigen::Isometry3d& correction() const;
 
   PriorMapUpdater(PriorMapUpdater&&) noexcept;
   PriorMapUpdater& operator=(PriorMapUpdater&&) noexcept;

@@ -82,6 +82,11 @@ struct PriorSensorFrames {
   std::string summary;  // one line: keyframes with mag / GNSS, psi and its sigma, the fit
 };
 
+// T_imu_cam: the prior run's camera-IMU extrinsic (its store's, StoreMetadata::T_imu_cam). A wrong
+// one turns the keyframes' magnetometer samples with the robot's heading; the heading estimator's
+// majority rule then refuses a heading (mag.reason names T_imu_cam) instead of returning a wrong
+// one. The summary ends with "mag - ENU psi" when both headings exist (the declination error; more
+// points at a wrong T_imu_cam or a disturbed magnetometer).
 // Errors (kInvalidArgument): T_imu_cam not rigid, sigmas not positive and finite, a non-finite
 // antenna offset. A prior map without magnetometer or GNSS tags is no error: mag_valid / enu_valid
 // are false and the results' reasons say why.

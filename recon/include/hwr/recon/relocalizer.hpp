@@ -31,9 +31,15 @@
 //     case), without one a sweep of yaw_sweep_steps yaws when ORB gave nothing.
 //  d. NDT (recon::NdtAligner, Magnusson 2009) of the current local cloud, moved by each hypothesis,
 //     against the prior points around it (PriorMap::points_near: the cloud's extent + target_margin_m
-//     about its moved centroid), coarse to fine over ndt_coarse.resolutions_m. The keep_best (3)
+//     about its moved centroid), coarse to fine over ndt_coarse.resolutions_m. A coarse result seeds
+//     the next stage when it converged or only stopped early (line search on a voxel-face jump, out of
+//     iterations) and covers min_inlier_ratio of the cloud; the coarse levels have no degeneracy test
+//     (at 1-2 m voxels the ground dominates the Hessian; the fine stage judges). The keep_best (3)
 //     best by NDT score are aligned again at ndt_fine.resolutions_m ("three high-resolution poses");
-//     the best of those is the answer.
+//     the best of those is the answer. The fine stage's source is the local map's structure points
+//     (off horizontal planes, structure_points.hpp) plus at most fine_ground_share of their count of
+//     the rest, when it has min_structure_points of them: the ground's pull towards its voxel means
+//     then no longer outweighs the walls along x, y and yaw.
 //  e. Acceptance, so that a pose is returned only when it is unambiguous (0 false relocalizations
 //     is an acceptance goal of the issue): the fine NDT converged (not degenerate), its inlier ratio
 //     is at least min_inlier_ratio, it agrees with the priors given (yaw gate; the position within
@@ -45,7 +51,10 @@
 //     neighbours (whose matches made the pose: not independent evidence); when no such keyframe is
 //     near, "not verified"; and its score per source point beats that of the best rival more than
 //     distinct_m or distinct_rad away that the priors allow, at the fine and at the coarse
-//     resolution, by min_score_margin (relative). Rivals: the other refined hypotheses, and always
+//     resolution, by min_score_margin (relative); the scores are taken over the structure points
+//     alone when there are min_structure_points of them (every rival at its own pose): a ground plane
+//     fits a wrong pose as well as the right one, which outdoors kept margins over all points at
+//     0.01-0.23 for correct fits. Rivals: the other refined hypotheses, and always
 //     NDT from the best turned 180 deg about the vertical through the local map's centroid, and
 //     from the first RANSAC pose distinct from the fit among the next rival_scan ranked candidates
 //     with a vote, away (> verify_radius_m) from the fitted camera (a repeated place: the second
@@ -154,6 +163,10 @@ struct RelocalizerConfig {
   NdtConfig ndt_coarse = [] {
     NdtConfig c;
     c.resolutions_m = {2.0, 1.0, 0.0, 0.0};
+    // No degeneracy test at the coarse levels: they only seed the fine stage, and at 1-2 m voxels a
+    // ground plane dominates the Hessian (outdoors the smallest/largest eigenvalue ratio was
+    // 0.0004-0.0097, median 0.0018, at fits the fine stage then confirmed).
+    c.degenerate_eigenvalue_ratio = 0.0;
     c.max_source_points = 20'000;
     c.max_target_points = 2'000'000;
     return c;
@@ -168,6 +181,7 @@ struct RelocalizerConfig {
     // voxel-face jumps in 3 of 8 attempts.
     c.translation_epsilon_m = 5e-4;
     c.rotation_epsilon_rad = 5e-4;
+    c.degenerate_eigenvalue_ratio = 0.0125;
     c.max_source_points = 20'000;
     c.max_target_points = 2'000'000;
     return c;
@@ -179,6 +193,16 @@ struct RelocalizerConfig {
   // e. acceptance
   double min_inlier_ratio = 0.7;
   double min_score_margin = 0.2;  // (best - competitor) / best, scores per source point
+  // The margin is taken over the local map's structure points (off horizontal planes,
+  // src/structure_points.hpp) when it has at least min_structure_points of them, else over all
+  // points: outdoors the ground is most of the map and fits a wrong pose as well as the right one
+  // (sim outdoor: margins over all points 0.01-0.23 for correct fits).
+  int min_structure_points = 300;
+  double structure_voxel_m = 0.5;
+  double structure_min_normal_z = 0.8;
+  // With that much structure the fine NDT (step d) aligns the structure points and at most this
+  // share of their count of the rest (ground), so the ground does not outweigh them along x, y, yaw.
+  double fine_ground_share = 0.5;
   double distinct_m = 0.5, distinct_rad = 10.0 * 3.14159265358979323846 / 180.0;
   double max_ndt_correction_m = 0.3, max_ndt_correction_rad = 3.0 * 3.14159265358979323846 / 180.0;
   double position_gate_sigmas = 3.0, position_gate_margin_m = 1.0;
@@ -233,6 +257,10 @@ struct RelocalizationCounters {
 struct RelocalizationResult {
   bool localized = false;
   Eigen::Isometry3d T_prior_world = Eigen::Isometry3d::Identity();  // valid when localized
+  // The best fit that step e judged, also when it was rejected (for diagnosis and benches; never a
+  // pose to use): valid when best_fit_valid.
+  Eigen::Isometry3d T_prior_world_best_fit = Eigen::Isometry3d::Identity();
+  bool best_fit_valid = false;
   RelocalizationReason reason = RelocalizationReason::kNdtFailed;
   std::string message;  // one line a person can read, with the numbers behind the reason
   RelocalizationCounters counters;
