@@ -332,33 +332,11 @@ struct FreeSpaceCarver::Impl {
         rc.occupied_band_m = c.margin_min_m + c.k_sigma_occupied * sigma_m;
         ++stats.rays;
         if (n == 0) continue;
-        if (++ray_id == 0) {  // wrapped after 2^32 rays: old stamps could collide
-          std::fill_n(stamps.begin(), n, 0u);
-          ray_id = 1;
-        }
-        rc.stamp = ray_id;
-
-        RTCRayHit rh;
-        rh.ray.org_x = o.x();
-        rh.ray.org_y = o.y();
-        rh.ray.org_z = o.z();
-        rh.ray.dir_x = rc.d.x();
-        rh.ray.dir_y = rc.d.y();
-        rh.ray.dir_z = rc.d.z();
-        rh.ray.tnear = 0.0f;
         // Past the endpoint only points on the measured plane matter (occupied): at incidence cos_inc
         // the ray stays within margin + radius of the plane for that range divided by cos_inc. Check
         // rays go on to check_reach_behind_m: a prior surface behind the measured one is "far".
         const float behind_m = vote ? margin : std::max(margin, c.check_reach_behind_m);
-        rh.ray.tfar = z + (behind_m + c.point_radius_m) / (d_norm * cos_inc);
-        rh.ray.time = 0.0f;
-        rh.ray.mask = 0xFFFFFFFFu;
-        rh.ray.id = 0;
-        rh.ray.flags = 0;
-        rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-        rh.hit.primID = RTC_INVALID_GEOMETRY_ID;
-        rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
-        rtcIntersect1(scene, &rc.embree, &rh);
+        cast_ray(&rc, z + (behind_m + c.point_radius_m) / (d_norm * cos_inc));
         if (pass == Pass::kCheck) {
           if (rc.ray_near) {
             ++rc.near_rays[static_cast<size_t>(cluster)];
@@ -419,6 +397,33 @@ struct FreeSpaceCarver::Impl {
     return n_out;
   }
 
+  // Casts the ray rc->d from rc->o to tfar with a fresh ray stamp; the intersection filter sees every
+  // sphere it crosses (classified per rc->pass, header). One BVH traversal, no allocation.
+  void cast_ray(RayContext* rc, float tfar) {
+    if (++ray_id == 0) {  // wrapped after 2^32 rays: old stamps could collide
+      std::fill_n(stamps.begin(), n, 0u);
+      ray_id = 1;
+    }
+    rc->stamp = ray_id;
+    RTCRayHit rh;
+    rh.ray.org_x = rc->o.x();
+    rh.ray.org_y = rc->o.y();
+    rh.ray.org_z = rc->o.z();
+    rh.ray.dir_x = rc->d.x();
+    rh.ray.dir_y = rc->d.y();
+    rh.ray.dir_z = rc->d.z();
+    rh.ray.tnear = 0.0f;
+    rh.ray.tfar = tfar;
+    rh.ray.time = 0.0f;
+    rh.ray.mask = 0xFFFFFFFFu;
+    rh.ray.id = 0;
+    rh.ray.flags = 0;
+    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+    rh.hit.primID = RTC_INVALID_GEOMETRY_ID;
+    rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+    rtcIntersect1(scene, &rc->embree, &rh);
+  }
+
   // Casts the measured planes from T_prior_cam and adds their point-to-plane residuals to *system.
   void cast_planes(const MeasuredPlane* planes, int n_planes, const Eigen::Isometry3d& T_prior_cam,
                    const PointToPlaneParams& params, PointToPlaneSystem* system) {
@@ -442,28 +447,7 @@ struct FreeSpaceCarver::Impl {
       rc.align_w = rc.align_ws = 0.0f;
       rc.align_wp.setZero();
       rc.align_n = 0;
-      if (++ray_id == 0) {
-        std::fill_n(stamps.begin(), n, 0u);
-        ray_id = 1;
-      }
-      rc.stamp = ray_id;
-      RTCRayHit rh;
-      rh.ray.org_x = o.x();
-      rh.ray.org_y = o.y();
-      rh.ray.org_z = o.z();
-      rh.ray.dir_x = rc.d.x();
-      rh.ray.dir_y = rc.d.y();
-      rh.ray.dir_z = rc.d.z();
-      rh.ray.tnear = 0.0f;
-      rh.ray.tfar = mp.z_m + (rc.align_c_m + config.point_radius_m) / (rc.d_norm * mp.cos_inc);
-      rh.ray.time = 0.0f;
-      rh.ray.mask = 0xFFFFFFFFu;
-      rh.ray.id = 0;
-      rh.ray.flags = 0;
-      rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-      rh.hit.primID = RTC_INVALID_GEOMETRY_ID;
-      rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
-      rtcIntersect1(scene, &rc.embree, &rh);
+      cast_ray(&rc, mp.z_m + (rc.align_c_m + config.point_radius_m) / (rc.d_norm * mp.cos_inc));
       if (rc.align_n > 0 && rc.align_w > 0.0f) add_residual(rc, R, o, mp, system);
     }
   }

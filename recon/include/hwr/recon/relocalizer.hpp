@@ -78,14 +78,16 @@
 // point count, so hypotheses are compared on the same cloud at the same resolution.
 //
 // Memory: create() sizes the current-keyframe matcher, RANSAC, the match and correspondence
-// buffers, the source buffer (max_source_points) and both NDT aligners. relocalize() runs off the
+// buffers, the source buffer (max_source_points), both NDT aligners and the structure scores' NDT
+// target (at most 65536 voxels, ~13 MB). relocalize() runs off the
 // control loop and allocates: the prior LSH index (prepare(), once per prior map: per feature a
 // copy of its descriptor (32 B), its keyframe and a query mark (4 B each) and 4 B per table, plus
 // 4 (2^key_bits + 1) B of offsets per table; with 4 x 16-bit tables ~9.9 MB for the lab's 158k
 // features, the build's 4 B per feature of key scratch freed), the current keyframe's LSH tables (FLANN
 // allocates them on every build), the per-prior-keyframe vote and position tables (first call), the prior
-// target cloud (grows to the largest points_near answer, then reused), the prior map's cloud loads and the
-// result's message.
+// target cloud (grows to the largest points_near answer, then reused), the structure split (a voxel
+// hash over the local map, and the structure / fine-source buffers, reused), the prior map's cloud
+// loads and the result's message.
 
 #include <array>
 #include <cstdint>
