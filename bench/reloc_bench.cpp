@@ -24,6 +24,7 @@
 //   hwr-bench reloc [--scenes lab,outdoor] [--starts 50] [--quick] [--seed 1] [--prior-cache DIR]
 //                   [--robot PATH] [--false-starts 20] [--max-attempts 8] [--first-motion-m 1]
 //                   [--attempt-step-m 1] [--max-motion-m 8] [--keyframe-step 12] [--verbose]
+//                   [--sets neither,imu,gnss,both] [--orb-refine on|off]
 
 #include "bench_command.hpp"
 
@@ -71,6 +72,7 @@ struct Options {
   size_t keyframe_step = 12;
   bool verbose = false;
   std::vector<std::string> sets = {"neither", "imu", "gnss", "both"};  // rows to run (set_key)
+  std::string orb_refine = "on";  // step d' (relocalizer.hpp): on (default), off
 };
 
 // ---- sensor sets (paper Table IV columns) ----
@@ -397,6 +399,15 @@ core::Status run_start(const Options& o, Prior* prior, recon::Relocalizer* reloc
           std::printf(", position prior %.1f %.1f", q.position.p_prior_m.x(), q.position.p_prior_m.y());
         std::printf("\n");
       }
+      if (o.verbose && r.best_fit_valid && r.orb_refined) {
+        // Step d' replaced a degenerate NDT fit: how far off was NDT alone?
+        const PoseError e = pose_error(r.T_prior_world_ndt * T_world_cam, truth.T_prior_cam_local);
+        const PoseError e_fit = pose_error(r.T_prior_world_best_fit * T_world_cam, truth.T_prior_cam_local);
+        std::printf(
+            "      ORB-refined fit: error local %.2f cm %.3f deg; the degenerate NDT fit's %.2f cm %.3f "
+            "deg\n",
+            e_fit.cm, e_fit.deg, e.cm, e.deg);
+      }
       if (r.localized) {
         const Eigen::Isometry3d T_prior_cam = r.T_prior_world * T_world_cam;
         s.rec.err_true = pose_error(T_prior_cam, truth.T_prior_cam_true);
@@ -486,6 +497,12 @@ int run_reloc(int argc, char** argv) {
       o.keyframe_step = static_cast<size_t>(std::max(1, std::atoi(value("--keyframe-step").c_str())));
     } else if (a == "--verbose") {
       o.verbose = true;
+    } else if (a == "--orb-refine") {
+      o.orb_refine = value("--orb-refine");
+      if (o.orb_refine != "off" && o.orb_refine != "on") {
+        std::fprintf(stderr, "reloc: --orb-refine takes on or off\n");
+        return 2;
+      }
     } else if (a == "--sets") {
       o.sets.clear();
       std::stringstream ss(value("--sets"));
@@ -501,7 +518,7 @@ int run_reloc(int argc, char** argv) {
                    "usage: hwr-bench reloc [--scenes lab,outdoor] [--starts N] [--quick] [--seed S]\n"
                    "       [--prior-cache DIR] [--robot PATH] [--false-starts N] [--max-attempts N]\n"
                    "       [--first-motion-m M] [--attempt-step-m M] [--max-motion-m M] [--keyframe-step N] "
-                   "[--verbose]\n       [--sets neither,imu,gnss,both]\n");
+                   "[--verbose]\n       [--sets neither,imu,gnss,both] [--orb-refine on|off]\n");
       return a == "--help" || a == "-h" ? 0 : 2;
     }
   }
@@ -516,7 +533,8 @@ int run_reloc(int argc, char** argv) {
     return 2;
   }
   const auto t_bench = std::chrono::steady_clock::now();
-  const recon::RelocalizerConfig rcfg;  // the defaults, unchanged
+  recon::RelocalizerConfig rcfg;  // the defaults, but for --orb-refine
+  rcfg.orb_refine = o.orb_refine != "off";
   std::printf(
       "hwr-bench reloc: %d starts per scene (seed %llu), %d false starts (outdoor vs lab prior); attempts "
       "from %.1f m "
@@ -525,9 +543,10 @@ int run_reloc(int argc, char** argv) {
       o.max_attempts, o.max_motion_m, o.keyframe_step);
   std::printf(
       "relocalizer: RelocalizerConfig defaults (top_k %d, min_votes %d, keep_best %d, min_inlier_ratio "
-      "%.2f, min_score_margin %.2f, candidate_sigma_factor %.1f, ndt_fine down to %.2f m)\n",
+      "%.2f, min_score_margin %.2f, candidate_sigma_factor %.1f, ndt_fine down to %.2f m), ORB refinement "
+      "%s\n",
       rcfg.top_k, rcfg.min_votes, rcfg.keep_best, rcfg.min_inlier_ratio, rcfg.min_score_margin,
-      rcfg.candidate_sigma_factor, rcfg.ndt_fine.resolutions_m[1]);
+      rcfg.candidate_sigma_factor, rcfg.ndt_fine.resolutions_m[1], o.orb_refine.c_str());
 
   struct Scene {
     std::string name;

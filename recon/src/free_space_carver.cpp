@@ -386,12 +386,15 @@ struct FreeSpaceCarver::Impl {
         // Noise along the normal: the prior's own, and the range noise of the fit's endpoint.
         const float s_range_m = (p.depth_noise_m0 + c.depth_noise_k * z * z) * d_norm * cos_inc /
                                 std::sqrt(static_cast<float>(count));
+        const float sigma_m = std::sqrt(c.margin_min_m * c.margin_min_m + s_range_m * s_range_m);
+        // Zero noise (margin_min_m, depth_noise_k and m0 all 0): no weight can be given, skip.
+        if (!(sigma_m > 0.0f)) continue;
         MeasuredPlane& mp = out[n_out++];
         mp.d_cam = d_cam;
         mp.z_m = z;
         mp.n_cam = -n_over_c.normalized();
         mp.cos_inc = cos_inc;
-        mp.sigma_m = std::sqrt(c.margin_min_m * c.margin_min_m + s_range_m * s_range_m);
+        mp.sigma_m = sigma_m;
       }
     }
     return n_out;
@@ -589,7 +592,7 @@ core::Status FreeSpaceCarver::set_prior(const CloudPoint* points_prior, int n) {
 
 namespace {
 
-// The checks observe() and accumulate_point_to_plane() share.
+// The checks observe() and measure_planes() share.
 core::Status check_frame(const cv::Mat& depth_m, const hal::PinholeIntrinsics& K,
                          const Eigen::Isometry3d& T_prior_cam, int stride_px, bool has_scene) {
   if (!K.valid()) return core::InvalidArgument("free-space carver: invalid intrinsics");

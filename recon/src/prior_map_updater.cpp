@@ -229,19 +229,27 @@ core::Status PriorMapUpdater::observe(const cv::Mat& depth_m, const Eigen::Isome
   PriorPoseGuess guess;
   guess.T_prior_cam = m.correction * T_prior_cam;
   guess.T_prior_cam_anchor = T_prior_cam;
-  // The carried information, decayed once per keyframe and moved to this camera: xi (camera frame)
-  // -> zeta here = N xi, N = diag(R, R) -> zeta at the old centre = P zeta, P = [I 0; [dc]x I]
-  // (a rotation omega about the old centre moves this one by omega x dc more).
+  // The carried information (prior frame, about correction_centre_prior), decayed once per keyframe
+  // and moved to this camera: xi (camera frame) -> zeta = N xi, N = diag(R, R), at the camera's
+  // centre -> P zeta at the old centre, P = [I 0; [dc]x I] (a rotation omega about the old centre
+  // moves this one by omega x dc more).
   m.correction_information *= m.config.carried_information;
-  {
+  const auto camera_to_prior = [](const Eigen::Matrix3d& R_prior_cam) {
     Eigen::Matrix<double, 6, 6> N = Eigen::Matrix<double, 6, 6>::Zero();
-    N.topLeftCorner<3, 3>() = guess.T_prior_cam.linear();
-    N.bottomRightCorner<3, 3>() = guess.T_prior_cam.linear();
+    N.topLeftCorner<3, 3>() = R_prior_cam;
+    N.bottomRightCorner<3, 3>() = R_prior_cam;
+    return N;
+  };
+  // The carried information about zeta at `centre` instead of the old centre: P^T I P.
+  const auto carried_at = [&](const Eigen::Vector3d& centre) {
     Eigen::Matrix<double, 6, 6> P = Eigen::Matrix<double, 6, 6>::Identity();
-    const Eigen::Vector3d dc = guess.T_prior_cam.translation() - m.correction_centre_prior;
+    const Eigen::Vector3d dc = centre - m.correction_centre_prior;
     P.bottomLeftCorner<3, 3>() << 0.0, -dc.z(), dc.y(), dc.z(), 0.0, -dc.x(), -dc.y(), dc.x(), 0.0;
-    const Eigen::Matrix<double, 6, 6> M = P * N;
-    guess.information = M.transpose() * m.correction_information * M;
+    return Eigen::Matrix<double, 6, 6>(P.transpose() * m.correction_information * P);
+  };
+  {
+    const Eigen::Matrix<double, 6, 6> N = camera_to_prior(guess.T_prior_cam.linear());
+    guess.information = N.transpose() * carried_at(guess.T_prior_cam.translation()) * N;
   }
   auto refined = m.refiner.refine(m.views.data(), static_cast<int>(m.views.size()), depth_m, guess);
   if (!refined.ok()) return refined.status();
@@ -279,11 +287,12 @@ core::Status PriorMapUpdater::observe(const cv::Mat& depth_m, const Eigen::Isome
   }
   // A refinement the carver's pose check confirmed in a view carries to the next keyframe.
   if (refined->result == PoseRefinement::kConverged && any_carved) {
+    // Both terms about zeta at the refined camera: the carried one moved there (not the guess's, which
+    // sits at the guess's camera, up to max_correction away), the data's turned from its camera frame.
     m.correction = T_prior_cam_used * T_prior_cam.inverse();
-    Eigen::Matrix<double, 6, 6> N = Eigen::Matrix<double, 6, 6>::Zero();
-    N.topLeftCorner<3, 3>() = T_prior_cam_used.linear();
-    N.bottomRightCorner<3, 3>() = T_prior_cam_used.linear();
-    m.correction_information = N * (refined->information + guess.information) * N.transpose();
+    const Eigen::Matrix<double, 6, 6> N = camera_to_prior(T_prior_cam_used.linear());
+    m.correction_information =
+        carried_at(T_prior_cam_used.translation()) + N * refined->information * N.transpose();
     m.correction_centre_prior = T_prior_cam_used.translation();
   }
   return first_error;

@@ -9,8 +9,11 @@
 #include <numeric>
 #include <random>
 
+#include <Eigen/Eigenvalues>
+
 #include "hwr/core/so3.hpp"
 #include "hwr/estimation/descriptor.hpp"
+#include "hwr/estimation/motion_only_refiner.hpp"
 
 #include "hwr/recon/structure_points.hpp"
 
@@ -75,6 +78,20 @@ struct Hypothesis {
   NdtResult fine;
   double fine_score = -1;
   bool fine_run = false;
+  // Step d': fine.T_target_source came from the ORB refinement of a degenerate NDT fit (kept here).
+  bool orb_refined = false;
+  Eigen::Isometry3d T_ndt = Eigen::Isometry3d::Identity();
+  int orb_refine_inliers = 0;
+  double orb_refine_sigma_m = 0, orb_refine_sigma_rad = 0;
+};
+
+// Step d': the ORB refinement of one fit (Relocalizer::Impl::orb_refine).
+struct OrbRefinement {
+  bool ok = false;
+  Eigen::Isometry3d T_prior_world = Eigen::Isometry3d::Identity();
+  int correspondences = 0, inliers = 0, keyframes = 0;
+  double sigma_m = 0, sigma_rad = 0;  // largest 1-sigma of the camera position / rotation
+  std::string why;                    // when !ok
 };
 
 // Step b's index over every prior descriptor: bit-sampling LSH for Hamming space (Indyk & Motwani
@@ -286,12 +303,14 @@ struct Relocalizer::Impl {
         max_features(max_feat),
         current_index(max_feat, c.lsh),
         ransac(max_feat),
+        refiner(max_feat),
         ndt_coarse(std::move(coarse)),
         ndt_fine(std::move(fine)),
         score_target(std::move(score)),
         matches(static_cast<size_t>(max_feat)),
         correspondences(static_cast<size_t>(max_feat)),
         inlier_mask(static_cast<size_t>(max_feat)),
+        feature_used(static_cast<size_t>(max_feat)),
         source(static_cast<size_t>(c.max_source_points) * 3) {
     hypotheses.reserve(static_cast<size_t>(2 * c.top_k + c.yaw_sweep_steps + 1));
   }
@@ -301,6 +320,10 @@ struct Relocalizer::Impl {
   // (*error says why when the prior map could not be read).
   double structure_score(PriorMap* prior, const Eigen::Isometry3d& T_prior_world, double resolution_m,
                          RelocalizationCounters* counters, core::Status* error);
+  // Step d': the current keyframe's ORB matches with the prior keyframes near the camera under
+  // T_prior_world, gated there, and the pose-only fit on them (see RelocalizerConfig::orb_refine).
+  OrbRefinement orb_refine(const Eigen::Isometry3d& T_prior_world, const RelocalizationQuery& q,
+                           const PriorMap& prior);
   // Gathers the prior points about `center` into `target` unless the last gather covers it.
   // The current keyframe's ORB matches with prior keyframe kf (its keypoints with depth, moved to the
   // prior frame), then RANSAC: T_cam_world of the result is the current camera's pose in the prior
@@ -357,6 +380,7 @@ struct Relocalizer::Impl {
   std::vector<uint8_t> is_candidate;
   std::vector<int> selected;
   estimation::PoseRansac ransac;
+  estimation::MotionOnlyRefiner refiner;  // step d'
   NdtAligner ndt_coarse, ndt_fine;
   // Step e's structure margin: the local map's structure points (current world, packed xyz) and the
   // prior target they are scored against, rebuilt per pose and resolution.
@@ -370,7 +394,8 @@ struct Relocalizer::Impl {
   std::vector<estimation::FeatureMatch> matches;
   std::vector<estimation::Correspondence> correspondences;
   std::vector<uint8_t> inlier_mask;
-  std::vector<float> source;  // packed xyz, current world
+  std::vector<uint8_t> feature_used;  // step d': current keypoints that have a correspondence
+  std::vector<float> source;          // packed xyz, current world
   int n_source = 0;
   Eigen::Vector3d centroid_world = Eigen::Vector3d::Zero();
   double extent_m = 0;
@@ -435,6 +460,99 @@ double Relocalizer::Impl::structure_score(PriorMap* prior, const Eigen::Isometry
   x.tail<3>() = core::so3_log(T_prior_world.linear());
   const PointsView points{structure.data(), n_structure, 3};
   return -ndt_fine.evaluate(score_target, points, x, nullptr, nullptr) / n_structure;
+}
+
+OrbRefinement Relocalizer::Impl::orb_refine(const Eigen::Isometry3d& T_prior_world,
+                                            const RelocalizationQuery& q, const PriorMap& prior) {
+  OrbRefinement out;
+  const Eigen::Isometry3d T_prior_cam = T_prior_world * q.T_world_cam;
+  const Eigen::Isometry3d T_cam_prior = T_prior_cam.inverse();
+  const Eigen::Vector3d axis = T_prior_cam.linear().col(2);
+  const double min_cos = std::cos(config.verify_max_angle_rad);
+  // The prior keyframes nearest the fitted camera, looking the same way (the ORB seeds included:
+  // here the matches measure the pose, they do not vouch for it).
+  const std::vector<PriorKeyframe>& kfs = prior.keyframes();
+  verify_ranked.clear();
+  for (size_t i = 0; i < kfs.size(); ++i) {
+    const double d = (kfs[i].T_prior_cam.translation() - T_prior_cam.translation()).norm();
+    if (d > config.verify_radius_m || kfs[i].T_prior_cam.linear().col(2).dot(axis) < min_cos) continue;
+    verify_ranked.emplace_back(static_cast<int>(std::lround(d * 1e4)), static_cast<int>(i));
+  }
+  std::sort(verify_ranked.begin(), verify_ranked.end());
+  out.keyframes = std::min(config.orb_refine_keyframes, static_cast<int>(verify_ranked.size()));
+  std::fill(feature_used.begin(), feature_used.end(), 0);
+  int nc = 0;
+  for (int r = 0; r < out.keyframes; ++r) {
+    const PriorKeyframe& kf = kfs[static_cast<size_t>(verify_ranked[static_cast<size_t>(r)].second)];
+    const int n = current_index.match(kf.features, matches.data(), max_features);
+    for (int i = 0; i < n && nc < max_features; ++i) {
+      const int ci = matches[static_cast<size_t>(i)].train;
+      if (feature_used[static_cast<size_t>(ci)]) continue;  // a nearer keyframe's match has it
+      const estimation::Feature& fp = kf.features.feature(matches[static_cast<size_t>(i)].query);
+      const estimation::Feature& fc = q.features->feature(ci);
+      if (!(fp.depth_m > 0)) continue;
+      const Eigen::Vector3d p_prior = kf.T_prior_cam * fp.p_cam_m;
+      const Eigen::Vector3d p_cam = T_cam_prior * p_prior;
+      if (!(p_cam.z() > 0)) continue;
+      const double du = K.fx * p_cam.x() / p_cam.z() + K.cx - fc.u_px;
+      const double dv = K.fy * p_cam.y() / p_cam.z() + K.cy - fc.v_px;
+      const double tol_px = config.orb_refine_gate_px * q.features->scale(fc.octave);
+      if (du * du + dv * dv > tol_px * tol_px) continue;
+      if (fc.depth_m > 0 && std::abs(p_cam.z() - fc.depth_m) > config.orb_refine_depth_frac * fc.depth_m)
+        continue;
+      feature_used[static_cast<size_t>(ci)] = 1;
+      estimation::Correspondence& c = correspondences[static_cast<size_t>(nc++)];
+      c.p_world = p_prior;
+      c.uv_px = {fc.u_px, fc.v_px};
+      c.depth_m = fc.depth_m;
+      c.octave = fc.octave;
+    }
+  }
+  out.correspondences = nc;
+  if (nc < config.orb_refine_min_inliers) {
+    out.why = format("%.0f ORB correspondences over %.0f prior keyframes (need %.0f)", nc, out.keyframes,
+                     config.orb_refine_min_inliers);
+    return out;
+  }
+  // RANSAC first: the NDT fit may be tens of centimetres off along its weak direction, so the gate is
+  // wide and mismatches pass it; the pose-only fit then starts from the consensus pose.
+  const estimation::PoseRansacResult consensus =
+      ransac.solve(correspondences.data(), nc, K, config.ransac, inlier_mask.data());
+  if (!consensus.ok || consensus.inliers < config.orb_refine_min_inliers ||
+      !finite_pose(consensus.T_cam_world)) {
+    out.inliers = consensus.inliers;
+    out.why = format("RANSAC found %.0f of %.0f correspondences consistent (need %.0f)", consensus.inliers,
+                     nc, config.orb_refine_min_inliers);
+    return out;
+  }
+  estimation::RefineConfig rc;
+  rc.scale_factor = config.ransac.scale_factor;
+  const estimation::RefineResult rr =
+      refiner.refine(correspondences.data(), nc, K, consensus.T_cam_world, rc, inlier_mask.data());
+  out.inliers = rr.inliers;
+  if (!rr.ok || rr.inliers < config.orb_refine_min_inliers || !finite_pose(rr.T_cam_world) ||
+      !rr.covariance.allFinite()) {
+    out.why = format("the pose-only fit kept %.0f of %.0f correspondences (need %.0f)", rr.inliers, nc,
+                     config.orb_refine_min_inliers);
+    return out;
+  }
+  // Largest 1-sigma of dxi = (rho, phi), T_cam_prior <- exp(dxi) T_cam_prior: rho is the camera's
+  // own displacement (metres), phi its rotation.
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es_t(rr.covariance.topLeftCorner<3, 3>(),
+                                                      Eigen::EigenvaluesOnly);
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es_r(rr.covariance.bottomRightCorner<3, 3>(),
+                                                      Eigen::EigenvaluesOnly);
+  out.sigma_m = std::sqrt(std::max(0.0, es_t.eigenvalues()(2)));
+  out.sigma_rad = std::sqrt(std::max(0.0, es_r.eigenvalues()(2)));
+  out.T_prior_world = rr.T_cam_world.inverse() * q.T_world_cam.inverse();
+  if (out.sigma_m > config.orb_refine_max_sigma_m || out.sigma_rad > config.orb_refine_max_sigma_rad) {
+    out.why = format("the pose-only fit is weak: sigma %.2f cm / %.3f deg (max %.2f cm / %.3f deg)",
+                     100.0 * out.sigma_m, out.sigma_rad * kRadToDeg, 100.0 * config.orb_refine_max_sigma_m,
+                     config.orb_refine_max_sigma_rad * kRadToDeg);
+    return out;
+  }
+  out.ok = true;
+  return out;
 }
 
 core::Status Relocalizer::Impl::gather_target(PriorMap* prior, const Eigen::Vector3d& center,
@@ -523,11 +641,13 @@ core::Expected<Relocalizer> Relocalizer::create(const RelocalizerConfig& c, cons
   if (max_features < 1) return core::InvalidArgument("relocalizer: max_features must be >= 1");
   if (c.top_k < 1 || c.keep_best < 1 || c.keep_best > 3 || c.min_orb_inliers < 3 || c.min_votes < 0 ||
       c.verify_keyframes < 0 || c.yaw_sweep_steps < 0 || c.rival_scan < 0 || c.nms_keyframes < 0 ||
-      c.vote_tie_bits < 0 || c.vote_max_distance < 0 || c.vote_tie_bits > 256 || c.vote_max_distance > 256) {
+      c.vote_tie_bits < 0 || c.vote_max_distance < 0 || c.vote_tie_bits > 256 || c.vote_max_distance > 256 ||
+      c.orb_refine_keyframes < 0 || c.orb_refine_min_inliers < 6) {
     return core::InvalidArgument(
         "relocalizer: top_k >= 1, keep_best in [1, 3], min_orb_inliers >= 3, min_votes >= 0, "
         "verify_keyframes >= 0, yaw_sweep_steps >= 0, rival_scan >= 0, nms_keyframes >= 0, "
-        "vote_tie_bits and vote_max_distance in [0, 256] (bits of an ORB descriptor) required");
+        "vote_tie_bits and vote_max_distance in [0, 256] (bits of an ORB descriptor), "
+        "orb_refine_keyframes >= 0, orb_refine_min_inliers >= 6 required");
   }
   if (c.vote_lsh.tables < 1 || c.vote_lsh.tables > 16 || c.vote_lsh.key_bits < 1 ||
       c.vote_lsh.key_bits > 20 || c.vote_lsh.multi_probe < 0 || c.vote_lsh.multi_probe > 2) {
@@ -543,11 +663,32 @@ core::Expected<Relocalizer> Relocalizer::create(const RelocalizerConfig& c, cons
         "relocalizer: max_source_points / max_target_points must be >= 1 and within the NDT configs' "
         "capacities");
   }
-  for (double v :
-       {c.candidate_sigma_factor, c.yaw_gate_sigmas, c.yaw_gate_margin_rad, c.dedup_m, c.dedup_rad,
-        c.target_margin_m, c.min_inlier_ratio, c.min_score_margin, c.distinct_m, c.distinct_rad,
-        c.max_ndt_correction_m, c.max_ndt_correction_rad, c.position_gate_sigmas, c.position_gate_margin_m,
-        c.verify_radius_m, c.verify_max_angle_rad, c.verify_px, c.verify_depth_frac, c.fine_ground_share}) {
+  for (double v : {c.candidate_sigma_factor,
+                   c.yaw_gate_sigmas,
+                   c.yaw_gate_margin_rad,
+                   c.dedup_m,
+                   c.dedup_rad,
+                   c.target_margin_m,
+                   c.min_inlier_ratio,
+                   c.min_score_margin,
+                   c.distinct_m,
+                   c.distinct_rad,
+                   c.max_ndt_correction_m,
+                   c.max_ndt_correction_rad,
+                   c.position_gate_sigmas,
+                   c.position_gate_margin_m,
+                   c.verify_radius_m,
+                   c.verify_max_angle_rad,
+                   c.verify_px,
+                   c.verify_depth_frac,
+                   c.fine_ground_share,
+                   c.orb_refine_gate_px,
+                   c.orb_refine_depth_frac,
+                   c.orb_refine_max_sigma_m,
+                   c.orb_refine_max_sigma_rad,
+                   c.orb_refine_max_score_loss,
+                   c.orb_refine_max_move_m,
+                   c.orb_refine_max_move_rad}) {
     if (!(v >= 0) || !std::isfinite(v)) {
       return core::InvalidArgument(
           "relocalizer: sigma factors, gates, margins and thresholds must be finite and >= 0");
@@ -834,6 +975,54 @@ RelocalizationResult Relocalizer::relocalize(const RelocalizationQuery& q, Prior
     h.fine_run = true;
     h.fine = m.ndt_fine.align(target, fine_source, h.coarse.T_target_source);
     if (h.fine.converged) h.fine_score = h.fine.score / m.n_fine_source;
+    const bool weak = !h.fine.converged && h.fine.failure == NdtFailure::kDegenerate;
+    if (cfg.orb_refine && weak && h.fine.inlier_ratio >= cfg.min_inlier_ratio &&
+        finite_pose(h.fine.T_target_source)) {
+      // Step d': NDT converged but leaves a direction weak; ORB keypoints may pin it.
+      ++res.orb_refine_attempts;
+      OrbRefinement o;
+      if (m.n_structure < cfg.min_structure_points) {
+        // Texture alone can repeat (the sim's outdoor ground pattern every 4.1 m gave a consistent
+        // ORB fit 4.09 m off, accepted on a ground-only local map): only structure can vouch for it.
+        o.why = format("not tried: %.0f structure points (< %.0f): appearance alone can repeat",
+                       m.n_structure, cfg.min_structure_points);
+      } else {
+        o = m.orb_refine(h.fine.T_target_source, q, *prior);
+      }
+      std::string why = o.why;
+      if (o.ok) {
+        const PoseDistance d = pose_distance(h.fine.T_target_source, o.T_prior_world, m.centroid_world);
+        double fine_resolution = 0;
+        for (double r : cfg.ndt_fine.resolutions_m) fine_resolution = r > 0 ? r : fine_resolution;
+        // The geometry must agree: the structure scores the ORB pose about as well as the NDT fit.
+        core::Status score_st;
+        const double s_ndt =
+            m.structure_score(prior, h.fine.T_target_source, fine_resolution, &res.counters, &score_st);
+        if (!score_st.ok()) return done(RelocalizationReason::kPriorMapError, score_st.message());
+        const double s_orb =
+            m.structure_score(prior, o.T_prior_world, fine_resolution, &res.counters, &score_st);
+        if (!score_st.ok()) return done(RelocalizationReason::kPriorMapError, score_st.message());
+        if (d.m > cfg.orb_refine_max_move_m || d.rad > cfg.orb_refine_max_move_rad) {
+          why = format("the ORB fit is %.2f m / %.1f deg from the NDT fit", d.m, d.rad * kRadToDeg);
+        } else if (!(std::isfinite(s_ndt) && std::isfinite(s_orb) && s_ndt > 0 &&
+                     s_orb >= (1.0 - cfg.orb_refine_max_score_loss) * s_ndt)) {
+          why = format("the ORB fit scores %.3f per structure point in NDT against the NDT fit's %.3f", s_orb,
+                       s_ndt);
+        } else {
+          ++res.orb_refine_accepted;
+          h.orb_refined = true;
+          h.T_ndt = h.fine.T_target_source;
+          h.orb_refine_inliers = o.inliers;
+          h.orb_refine_sigma_m = o.sigma_m;
+          h.orb_refine_sigma_rad = o.sigma_rad;
+          h.fine.T_target_source = o.T_prior_world;
+          h.fine.converged = true;
+          h.fine.failure = NdtFailure::kNone;
+          h.fine_score = s_orb;
+        }
+      }
+      if (!h.orb_refined) res.orb_refine_last_failure = why;
+    }
     ++picked;
   }
   if (picked == 0) {
@@ -918,6 +1107,7 @@ RelocalizationResult Relocalizer::relocalize(const RelocalizationQuery& q, Prior
     for (const Hypothesis& h : m.hypotheses) {
       if (h.fine_run) why += std::string(why.empty() ? "" : ", ") + ndt_failure_name(h.fine.failure);
     }
+    if (res.orb_refine_attempts > 0) why += "; ORB refinement: " + res.orb_refine_last_failure;
     return done(RelocalizationReason::kNdtFailed,
                 "relocalizer: the fine NDT did not converge from any of the " + std::to_string(picked) +
                     " best coarse poses (" + why + ")");
@@ -929,6 +1119,13 @@ RelocalizationResult Relocalizer::relocalize(const RelocalizationQuery& q, Prior
   res.T_prior_world_best_fit = T;
   res.best_fit_valid = true;
   res.best_inlier_ratio = best->fine.inlier_ratio;
+  res.orb_refined = best->orb_refined;
+  if (best->orb_refined) {
+    res.T_prior_world_ndt = best->T_ndt;
+    res.orb_refine_inliers = best->orb_refine_inliers;
+    res.orb_refine_sigma_m = best->orb_refine_sigma_m;
+    res.orb_refine_sigma_rad = best->orb_refine_sigma_rad;
+  }
   res.best_from_orb = best->from_orb;
   res.best_orb_inliers = best->orb_inliers;
   if (best->fine.inlier_ratio < cfg.min_inlier_ratio) {
@@ -951,7 +1148,10 @@ RelocalizationResult Relocalizer::relocalize(const RelocalizationQuery& q, Prior
                          d, gate));
     }
   }
-  if (best->from_orb) {
+  // An ORB-refined fit (step d') stands on its own multi-keyframe ORB fit and the structure's score,
+  // not on the one-keyframe RANSAC seed NDT started from (outdoors: seeds on the ground pattern's copy
+  // 4.08 m away whose refined fits were within 1.3 mm); that seed competes as a rival (below).
+  if (best->from_orb && !best->orb_refined) {
     const PoseDistance d = pose_distance(best->T_seed, T, m.centroid_world);
     if (d.m > cfg.max_ndt_correction_m || d.rad > cfg.max_ndt_correction_rad) {
       return done(
@@ -1005,6 +1205,13 @@ RelocalizationResult Relocalizer::relocalize(const RelocalizationQuery& q, Prior
   };
   double fine_rival = 0, coarse_rival = 0;
   m.rival_poses.clear();
+  // An ORB-refined fit far from its one-keyframe ORB seed: appearance pointed elsewhere too (a
+  // repeated texture: the sim's outdoor seeds 4.08 m off), so the seed's pose competes in the
+  // structure margin as it is (NDT from it is what moved away to the fit).
+  if (best->orb_refined && best->from_orb && distinct(best->T_seed) && gates_ok(best->T_seed)) {
+    m.rival_poses.push_back(best->T_seed);
+    ++res.rivals_evaluated;
+  }
   for (const Hypothesis& h : m.hypotheses) {
     if (&h == best) continue;
     bool fine_pose = false;
@@ -1166,6 +1373,10 @@ RelocalizationResult Relocalizer::relocalize(const RelocalizationQuery& q, Prior
              best->fine.inlier_ratio, res.score_margin, res.rivals_evaluated, best->orb_inliers) +
           " (margin over " + margin_over +
           format(", fine eigenvalue ratio %.4f)", best->fine.eigenvalue_ratio) +
+          (best->orb_refined ? format(" (NDT weak, pose from %.0f ORB inliers, sigma %.2f cm / %.3f deg)",
+                                      best->orb_refine_inliers, 100.0 * best->orb_refine_sigma_m,
+                                      best->orb_refine_sigma_rad * kRadToDeg)
+                             : std::string()) +
           (res.margin_known ? "" : " (no rival: the position and yaw priors pin the pose)"));
 }
 

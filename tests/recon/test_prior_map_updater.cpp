@@ -297,6 +297,56 @@ TEST(PriorPoseRefiner, GivenExactPosesThenTheyAreHardlyMoved) {
   EXPECT_LE(run.worst_deg, 0.1);
 }
 
+// Fail closed: each way a refinement can fail returns the guess unchanged (the carver's pose check
+// then decides), and a configuration that could never converge is refused.
+TEST(PriorPoseRefiner, GivenATooLargeCorrectionTooFewRaysOrNoConvergenceThenTheGuessComesBackUnchanged) {
+  const Scene& s = scene();
+  const PriorMapUpdaterConfig uc;
+  auto carver = FreeSpaceCarver::create(uc.carver, s.total_points);
+  ASSERT_TRUE(carver.ok());
+  ASSERT_TRUE(carver->set_prior(s.points_segment.data(), s.total_points).ok());
+  const PriorView view{&carver.value(), s.T_prior_segment};
+  auto refine_with = [&](PriorPoseRefinerConfig c, const CurrentFrame& f, const PriorPoseGuess& guess) {
+    auto refiner = PriorPoseRefiner::create(c, s.K);
+    EXPECT_TRUE(refiner.ok()) << refiner.status().message();
+    auto r = refiner->refine(&view, 1, f.depth_m, guess);
+    EXPECT_TRUE(r.ok()) << r.status().message();
+    return *r;
+  };
+  // The first view whose 2 cm / 0.3 deg error the default configuration corrects.
+  const CurrentFrame* frame = nullptr;
+  PriorPoseGuess guess;
+  for (const CurrentFrame& f : s.current) {
+    guess.T_prior_cam = guess.T_prior_cam_anchor = relocalization_error() * f.T_prior_cam_true;
+    if (refine_with(uc.refine, f, guess).result == PoseRefinement::kConverged) {
+      frame = &f;
+      break;
+    }
+  }
+  ASSERT_NE(frame, nullptr);
+  auto expect_guess_back = [&](const char* what, const PriorPoseRefinement& r, PoseRefinement expected) {
+    EXPECT_EQ(r.result, expected) << what << ": " << to_string(r.result);
+    EXPECT_TRUE(r.T_prior_cam.isApprox(guess.T_prior_cam, 0.0)) << what;
+  };
+  PriorPoseRefinerConfig c = uc.refine;
+  c.max_correction_m = 1e-4;  // the correction it found is ~2 cm
+  const PriorPoseRefinement too_large = refine_with(c, *frame, guess);
+  expect_guess_back("1e-4 m limit", too_large, PoseRefinement::kTooLarge);
+  EXPECT_GT(too_large.correction_m, 1e-4);
+  c = uc.refine;
+  c.min_rays = 1'000'000;  // more rays than the image has
+  expect_guess_back("1e6 rays", refine_with(c, *frame, guess), PoseRefinement::kTooFewRays);
+  c = uc.refine;
+  c.max_iterations = c.min_iterations = 1;  // one 2 cm step is not a converged one
+  expect_guess_back("one iteration", refine_with(c, *frame, guess), PoseRefinement::kNotConverged);
+  c = uc.refine;
+  c.min_iterations = c.max_iterations + 1;
+  EXPECT_FALSE(PriorPoseRefiner::create(c, s.K).ok());
+  c = uc.refine;
+  c.min_rays = 0;
+  EXPECT_FALSE(PriorPoseRefiner::create(c, s.K).ok());
+}
+
 // From the relocalization-sized error, per view: the error that is left along each direction the
 // view constrains to sigma <= 1 mm (eigenvectors of the returned information, the rotation scaled
 // by the refiner's lever) is within 2 mm, where it was up to ~5 cm.

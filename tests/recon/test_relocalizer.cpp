@@ -483,6 +483,70 @@ TEST(Relocalizer, GivenAKnownOffsetThenItIsRecoveredExactlyWithAndWithoutPriors)
               static_cast<unsigned long long>(prior->counters().cloud_evictions));
 }
 
+// ---- step d': ORB refinement of a fit NDT leaves weak ----
+
+TEST(Relocalizer, GivenAFineFitNdtCallsDegenerateThenTheOrbRefinementPinsItAndFailsClosedWhenWeak) {
+  auto prior = PriorMap::open(stores().full);
+  ASSERT_TRUE(prior.ok()) << prior.status().message();
+  const Eigen::Isometry3d T_true = known_T_prior_world();
+  const CurrentRun run = make_current(walk().query_lab, T_true);
+  auto make = [&](bool orb_refine, double max_sigma_m, int min_structure_points = 300) {
+    RelocalizerConfig c;
+    c.ndt_fine.degenerate_eigenvalue_ratio = 0.99;  // every fine fit is judged degenerate
+    c.orb_refine = orb_refine;
+    c.orb_refine_max_sigma_m = max_sigma_m;
+    c.min_structure_points = min_structure_points;
+    auto r = Relocalizer::create(c, walk().K, kMaxFeatures);
+    EXPECT_TRUE(r.ok()) << r.status().message();
+    return std::move(r).value();
+  };
+  const RelocalizationQuery q = make_query(run);
+
+  Relocalizer without = make(false, 0.01);
+  const RelocalizationResult r0 = without.relocalize(q, &prior.value());
+  print_result("degenerate, no refinement", r0);
+  EXPECT_FALSE(r0.localized);
+  EXPECT_EQ(r0.reason, RelocalizationReason::kNdtFailed);
+  EXPECT_NE(r0.message.find("degenerate"), std::string::npos) << r0.message;
+  EXPECT_EQ(r0.orb_refine_attempts, 0);
+
+  Relocalizer with = make(true, 0.01);
+  const RelocalizationResult r1 = with.relocalize(q, &prior.value());
+  print_result("degenerate, ORB refinement", r1);
+  ASSERT_TRUE(r1.localized) << r1.message;
+  EXPECT_TRUE(r1.orb_refined);
+  EXPECT_GE(r1.orb_refine_inliers, RelocalizerConfig{}.orb_refine_min_inliers);
+  EXPECT_GT(r1.orb_refine_sigma_m, 0.0);
+  EXPECT_LE(r1.orb_refine_sigma_m, 0.01);
+  EXPECT_NE(r1.message.find("ORB inliers, sigma"), std::string::npos) << r1.message;
+  const Errors e = pose_errors(r1.T_prior_world, T_true);
+  const Errors e_ndt = pose_errors(r1.T_prior_world_ndt, T_true);
+  std::printf("[ reloc    ]   ORB-refined error %.2f cm, %.3f deg; the NDT fit's %.2f cm, %.3f deg\n",
+              100.0 * e.m, e.deg, 100.0 * e_ndt.m, e_ndt.deg);
+  EXPECT_LT(e.m, 0.02);
+  EXPECT_LT(e.deg, 0.3);
+
+  // A refinement whose covariance does not pin every direction to the (here impossible) 1 um is
+  // refused: NDT's degenerate fit stays rejected.
+  Relocalizer strict = make(true, 1e-6);
+  const RelocalizationResult r2 = strict.relocalize(q, &prior.value());
+  print_result("degenerate, refinement too weak", r2);
+  EXPECT_FALSE(r2.localized);
+  EXPECT_EQ(r2.reason, RelocalizationReason::kNdtFailed);
+  EXPECT_GT(r2.orb_refine_attempts, 0);
+  EXPECT_EQ(r2.orb_refine_accepted, 0);
+  EXPECT_NE(r2.message.find("ORB refinement: the pose-only fit is weak"), std::string::npos) << r2.message;
+
+  // Without enough structure points (here: more than the local map has) the refinement is not tried:
+  // texture alone can repeat.
+  Relocalizer no_structure = make(true, 0.01, 1'000'000);
+  const RelocalizationResult r3 = no_structure.relocalize(q, &prior.value());
+  print_result("degenerate, no structure", r3);
+  EXPECT_FALSE(r3.localized);
+  EXPECT_EQ(r3.orb_refine_accepted, 0);
+  EXPECT_NE(r3.message.find("ORB refinement: not tried"), std::string::npos) << r3.message;
+}
+
 // ---- a second run of the simulator ----
 
 TEST(Relocalizer, GivenTheLabRevisitRunThenItsWorldFrameIsFoundInThePriorsFrame) {

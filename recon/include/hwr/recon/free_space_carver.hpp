@@ -71,7 +71,7 @@
 //    mm) averages out along the ray. For the right perturbation T_prior_cam · exp(ξ), ξ = (ω, v) in
 //    the camera frame, the measured point and normal stay put in the camera and the prior moves by
 //    exp(−ξ): r(ξ) = r + [(n_c × p_c)ᵀ, −n_cᵀ] ξ (p_c = T_prior_cam⁻¹ p̄). Each ray adds w JᵀJ and
-//    w J r, w = (mean weight) / σ_ray², σ_ray² = margin_min_m² + (depth_noise_k z² |d| cos θ)² / N
+//    w J r, w = (mean weight) / σ_ray², σ_ray² = margin_min_m² + ((m0 + depth_noise_k z²) |d| cos θ)² / N
 //    (the prior's own noise, and the range noise of the fitted endpoint along the normal). The
 //    camera-frame ξ makes the systems of several carvers (segments, each in its own frame) add up.
 

@@ -83,12 +83,13 @@ struct PriorPoseRefinement {
   PoseRefinement result = PoseRefinement::kOff;
   int iterations = 0;
   int residuals = 0;                            // of the last iteration
-  int constrained_dims = 0;                     // of the last iteration's subspace (0-6)
+  int constrained_dims = 0;                     // of the subspace fixed at the first iteration (0-6)
   float median_abs_residual_sigmas = 0;         // last iteration
   double step_m = 0, step_rad = 0;              // last step
-  double correction_m = 0, correction_rad = 0;  // anchor^-1 * result (camera frame) when refined
+  double correction_m = 0, correction_rad = 0;  // anchor^-1 * result (camera frame): converged, too large
   // The last iteration's information about xi (camera frame of the result), from the data alone:
-  // its normal matrix divided by the squared robust scale of the residuals.
+  // its normal matrix divided by the squared robust scale of the residuals (the scale is at least 1:
+  // never above the noise model), the directions that kept the guess included.
   Eigen::Matrix<double, 6, 6> information = Eigen::Matrix<double, 6, 6>::Zero();
 };
 
