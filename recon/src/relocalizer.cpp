@@ -319,7 +319,31 @@ struct Relocalizer::Impl {
   // prior points gathered about it, voxelised at resolution_m. NaN when the target cannot be built
   // (*error says why when the prior map could not be read).
   double structure_score(PriorMap* prior, const Eigen::Isometry3d& T_prior_world, double resolution_m,
-                         RelocalizationCounters* counters, core::Status* error);
+                         RelocalizationCounters* counters, core::Status* error) {
+    return points_score(prior, T_prior_world, {structure.data(), n_structure, 3}, resolution_m, counters,
+                        error);
+  }
+  // The same for any points (current world: the structure, the fine source).
+  double points_score(PriorMap* prior, const Eigen::Isometry3d& T_prior_world, const PointsView& points,
+                      double resolution_m, RelocalizationCounters* counters, core::Status* error);
+  // The prior keyframes within verify_radius_m of the camera T_prior_cam whose optical axes are within
+  // verify_max_angle_rad of its, nearest first, into verify_ranked (distance in 0.1 mm, index); those
+  // within nms_keyframes of an index in `exclude` are left out.
+  void rank_nearby_keyframes(const Eigen::Isometry3d& T_prior_cam, const PriorMap& prior,
+                             const std::vector<int>& exclude);
+  // The prior point p_prior seen from T_cam_prior lands within tol_px x the octave's scale of the
+  // current keypoint fc and, where fc has depth, within depth_frac of that depth.
+  bool reprojects(const Eigen::Isometry3d& T_cam_prior, const Eigen::Vector3d& p_prior,
+                  const estimation::Feature& fc, const estimation::FrameFeatures& current, double tol_px,
+                  double depth_frac) const {
+    const Eigen::Vector3d p_cam = T_cam_prior * p_prior;
+    if (!(p_cam.z() > 0)) return false;
+    const double du = K.fx * p_cam.x() / p_cam.z() + K.cx - fc.u_px;
+    const double dv = K.fy * p_cam.y() / p_cam.z() + K.cy - fc.v_px;
+    const double tol = tol_px * current.scale(fc.octave);
+    if (du * du + dv * dv > tol * tol) return false;
+    return !(fc.depth_m > 0 && std::abs(p_cam.z() - fc.depth_m) > depth_frac * fc.depth_m);
+  }
   // Step d': the current keyframe's ORB matches with the prior keyframes near the camera under
   // T_prior_world, gated there, and the pose-only fit on them (see RelocalizerConfig::orb_refine).
   OrbRefinement orb_refine(const Eigen::Isometry3d& T_prior_world, const RelocalizationQuery& q,
@@ -412,6 +436,7 @@ struct Relocalizer::Impl {
   std::vector<int> seed_picks;                 // per hypothesis: the ORB seed it adopts, -1: none
   std::vector<Hypothesis> picked_seeds;        // copies of the picks before write-back
   std::vector<int> excluded_keyframes;         // step e: keyframes that made the best fit
+  std::vector<int> excluded_none;              // step d': no keyframe is excluded (stays empty)
 };
 
 namespace {
@@ -446,20 +471,19 @@ void Relocalizer::Impl::subsample_source(const PointsView& local) {
   }
 }
 
-double Relocalizer::Impl::structure_score(PriorMap* prior, const Eigen::Isometry3d& T_prior_world,
-                                          double resolution_m, RelocalizationCounters* counters,
-                                          core::Status* error) {
+double Relocalizer::Impl::points_score(PriorMap* prior, const Eigen::Isometry3d& T_prior_world,
+                                       const PointsView& points, double resolution_m,
+                                       RelocalizationCounters* counters, core::Status* error) {
   const double nan = std::numeric_limits<double>::quiet_NaN();
   PointsView view;
   *error = gather_target(prior, T_prior_world * centroid_world, &view, counters);
-  if (!error->ok() || n_structure < 1) return nan;
+  if (!error->ok() || points.n < 1) return nan;
   if (!score_target.build(view, resolution_m).ok()) return nan;
   // With the pivot at the origin the parameterisation's pose is T(x) p = Exp(phi) p + t (ndt.hpp).
   Eigen::Matrix<double, 6, 1> x;
   x.head<3>() = T_prior_world.translation();
   x.tail<3>() = core::so3_log(T_prior_world.linear());
-  const PointsView points{structure.data(), n_structure, 3};
-  return -ndt_fine.evaluate(score_target, points, x, nullptr, nullptr) / n_structure;
+  return -ndt_fine.evaluate(score_target, points, x, nullptr, nullptr) / points.n;
 }
 
 OrbRefinement Relocalizer::Impl::orb_refine(const Eigen::Isometry3d& T_prior_world,
@@ -467,18 +491,11 @@ OrbRefinement Relocalizer::Impl::orb_refine(const Eigen::Isometry3d& T_prior_wor
   OrbRefinement out;
   const Eigen::Isometry3d T_prior_cam = T_prior_world * q.T_world_cam;
   const Eigen::Isometry3d T_cam_prior = T_prior_cam.inverse();
-  const Eigen::Vector3d axis = T_prior_cam.linear().col(2);
-  const double min_cos = std::cos(config.verify_max_angle_rad);
   // The prior keyframes nearest the fitted camera, looking the same way (the ORB seeds included:
   // here the matches measure the pose, they do not vouch for it).
   const std::vector<PriorKeyframe>& kfs = prior.keyframes();
-  verify_ranked.clear();
-  for (size_t i = 0; i < kfs.size(); ++i) {
-    const double d = (kfs[i].T_prior_cam.translation() - T_prior_cam.translation()).norm();
-    if (d > config.verify_radius_m || kfs[i].T_prior_cam.linear().col(2).dot(axis) < min_cos) continue;
-    verify_ranked.emplace_back(static_cast<int>(std::lround(d * 1e4)), static_cast<int>(i));
-  }
-  std::sort(verify_ranked.begin(), verify_ranked.end());
+  excluded_none.clear();
+  rank_nearby_keyframes(T_prior_cam, prior, excluded_none);
   out.keyframes = std::min(config.orb_refine_keyframes, static_cast<int>(verify_ranked.size()));
   std::fill(feature_used.begin(), feature_used.end(), 0);
   int nc = 0;
@@ -492,14 +509,10 @@ OrbRefinement Relocalizer::Impl::orb_refine(const Eigen::Isometry3d& T_prior_wor
       const estimation::Feature& fc = q.features->feature(ci);
       if (!(fp.depth_m > 0)) continue;
       const Eigen::Vector3d p_prior = kf.T_prior_cam * fp.p_cam_m;
-      const Eigen::Vector3d p_cam = T_cam_prior * p_prior;
-      if (!(p_cam.z() > 0)) continue;
-      const double du = K.fx * p_cam.x() / p_cam.z() + K.cx - fc.u_px;
-      const double dv = K.fy * p_cam.y() / p_cam.z() + K.cy - fc.v_px;
-      const double tol_px = config.orb_refine_gate_px * q.features->scale(fc.octave);
-      if (du * du + dv * dv > tol_px * tol_px) continue;
-      if (fc.depth_m > 0 && std::abs(p_cam.z() - fc.depth_m) > config.orb_refine_depth_frac * fc.depth_m)
+      if (!reprojects(T_cam_prior, p_prior, fc, *q.features, config.orb_refine_gate_px,
+                      config.orb_refine_depth_frac)) {
         continue;
+      }
       feature_used[static_cast<size_t>(ci)] = 1;
       estimation::Correspondence& c = correspondences[static_cast<size_t>(nc++)];
       c.p_world = p_prior;
@@ -525,14 +538,20 @@ OrbRefinement Relocalizer::Impl::orb_refine(const Eigen::Isometry3d& T_prior_wor
                      nc, config.orb_refine_min_inliers);
     return out;
   }
+  // The pose-only fit over the consensus' inliers (the wide gate's mismatches stay out).
+  int ni = 0;
+  for (int i = 0; i < nc; ++i) {
+    if (inlier_mask[static_cast<size_t>(i)])
+      correspondences[static_cast<size_t>(ni++)] = correspondences[static_cast<size_t>(i)];
+  }
   estimation::RefineConfig rc;
   rc.scale_factor = config.ransac.scale_factor;
   const estimation::RefineResult rr =
-      refiner.refine(correspondences.data(), nc, K, consensus.T_cam_world, rc, inlier_mask.data());
+      refiner.refine(correspondences.data(), ni, K, consensus.T_cam_world, rc, inlier_mask.data());
   out.inliers = rr.inliers;
   if (!rr.ok || rr.inliers < config.orb_refine_min_inliers || !finite_pose(rr.T_cam_world) ||
       !rr.covariance.allFinite()) {
-    out.why = format("the pose-only fit kept %.0f of %.0f correspondences (need %.0f)", rr.inliers, nc,
+    out.why = format("the pose-only fit kept %.0f of %.0f RANSAC inliers (need %.0f)", rr.inliers, ni,
                      config.orb_refine_min_inliers);
     return out;
   }
@@ -576,26 +595,31 @@ core::Status Relocalizer::Impl::gather_target(PriorMap* prior, const Eigen::Vect
   return core::Status::Ok();
 }
 
-int Relocalizer::Impl::verify(const Eigen::Isometry3d& T_prior_world, const RelocalizationQuery& q,
-                              const PriorMap& prior, const std::vector<int>& exclude_keyframes,
-                              int* keyframes_used) {
-  const Eigen::Isometry3d T_prior_cam = T_prior_world * q.T_world_cam;
-  const Eigen::Isometry3d T_cam_prior = T_prior_cam.inverse();
+void Relocalizer::Impl::rank_nearby_keyframes(const Eigen::Isometry3d& T_prior_cam, const PriorMap& prior,
+                                              const std::vector<int>& exclude) {
   const Eigen::Vector3d axis = T_prior_cam.linear().col(2);
   const double min_cos = std::cos(config.verify_max_angle_rad);
-  // The verify_keyframes nearest prior keyframes looking the same way.
   const std::vector<PriorKeyframe>& kfs = prior.keyframes();
   verify_ranked.clear();
   for (size_t i = 0; i < kfs.size(); ++i) {
     bool excluded = false;
-    for (int e : exclude_keyframes)
-      excluded = excluded || std::abs(static_cast<int>(i) - e) <= config.nms_keyframes;
+    for (int e : exclude) excluded = excluded || std::abs(static_cast<int>(i) - e) <= config.nms_keyframes;
     if (excluded) continue;
     const double d = (kfs[i].T_prior_cam.translation() - T_prior_cam.translation()).norm();
     if (d > config.verify_radius_m || kfs[i].T_prior_cam.linear().col(2).dot(axis) < min_cos) continue;
     verify_ranked.emplace_back(static_cast<int>(std::lround(d * 1e4)), static_cast<int>(i));
   }
   std::sort(verify_ranked.begin(), verify_ranked.end());
+}
+
+int Relocalizer::Impl::verify(const Eigen::Isometry3d& T_prior_world, const RelocalizationQuery& q,
+                              const PriorMap& prior, const std::vector<int>& exclude_keyframes,
+                              int* keyframes_used) {
+  const Eigen::Isometry3d T_prior_cam = T_prior_world * q.T_world_cam;
+  const Eigen::Isometry3d T_cam_prior = T_prior_cam.inverse();
+  // The verify_keyframes nearest prior keyframes looking the same way.
+  const std::vector<PriorKeyframe>& kfs = prior.keyframes();
+  rank_nearby_keyframes(T_prior_cam, prior, exclude_keyframes);
   int best = 0;
   const int n_kf = std::min(config.verify_keyframes, static_cast<int>(verify_ranked.size()));
   *keyframes_used = n_kf;
@@ -607,15 +631,10 @@ int Relocalizer::Impl::verify(const Eigen::Isometry3d& T_prior_world, const Relo
       const estimation::Feature& fp = kf.features.feature(matches[static_cast<size_t>(i)].query);
       const estimation::Feature& fc = q.features->feature(matches[static_cast<size_t>(i)].train);
       if (!(fp.depth_m > 0)) continue;
-      const Eigen::Vector3d p_cam = T_cam_prior * (kf.T_prior_cam * fp.p_cam_m);
-      if (!(p_cam.z() > 0)) continue;
-      const double du = K.fx * p_cam.x() / p_cam.z() + K.cx - fc.u_px;
-      const double dv = K.fy * p_cam.y() / p_cam.z() + K.cy - fc.v_px;
-      const double tol_px = config.verify_px * q.features->scale(fc.octave);
-      if (du * du + dv * dv > tol_px * tol_px) continue;
-      if (fc.depth_m > 0 && std::abs(p_cam.z() - fc.depth_m) > config.verify_depth_frac * fc.depth_m)
-        continue;
-      ++agree;
+      if (reprojects(T_cam_prior, kf.T_prior_cam * fp.p_cam_m, fc, *q.features, config.verify_px,
+                     config.verify_depth_frac)) {
+        ++agree;
+      }
     }
     best = std::max(best, agree);
   }
@@ -698,6 +717,9 @@ core::Expected<Relocalizer> Relocalizer::create(const RelocalizerConfig& c, cons
   if (!coarse.ok()) return core::InvalidArgument("relocalizer: ndt_coarse: " + coarse.status().message());
   auto fine = NdtAligner::create(c.ndt_fine);
   if (!fine.ok()) return core::InvalidArgument("relocalizer: ndt_fine: " + fine.status().message());
+  if (!(c.orb_refine_max_score_loss < 1.0)) {
+    return core::InvalidArgument("relocalizer: orb_refine_max_score_loss must be in [0, 1)");
+  }
   if (c.min_structure_points < 1 || !(c.structure_voxel_m > 0) || !std::isfinite(c.structure_voxel_m) ||
       !(c.structure_min_normal_z >= 0 && c.structure_min_normal_z <= 1)) {
     return core::InvalidArgument(
@@ -994,20 +1016,29 @@ RelocalizationResult Relocalizer::relocalize(const RelocalizationQuery& q, Prior
         const PoseDistance d = pose_distance(h.fine.T_target_source, o.T_prior_world, m.centroid_world);
         double fine_resolution = 0;
         for (double r : cfg.ndt_fine.resolutions_m) fine_resolution = r > 0 ? r : fine_resolution;
-        // The geometry must agree: the structure scores the ORB pose about as well as the NDT fit.
+        // The geometry must agree: the structure (x, y, yaw) and the whole fine source (the ground
+        // too: z, roll, pitch) score the ORB pose about as well as the NDT fit.
         core::Status score_st;
-        const double s_ndt =
-            m.structure_score(prior, h.fine.T_target_source, fine_resolution, &res.counters, &score_st);
-        if (!score_st.ok()) return done(RelocalizationReason::kPriorMapError, score_st.message());
-        const double s_orb =
-            m.structure_score(prior, o.T_prior_world, fine_resolution, &res.counters, &score_st);
-        if (!score_st.ok()) return done(RelocalizationReason::kPriorMapError, score_st.message());
+        double scores[2][2];  // [structure, fine source][NDT fit, ORB fit]
+        const PointsView score_points[2] = {{m.structure.data(), m.n_structure, 3}, fine_source};
+        for (int k = 0; k < 2; ++k) {
+          for (int j = 0; j < 2; ++j) {
+            scores[k][j] = m.points_score(prior, j == 0 ? h.fine.T_target_source : o.T_prior_world,
+                                          score_points[k], fine_resolution, &res.counters, &score_st);
+            if (!score_st.ok()) return done(RelocalizationReason::kPriorMapError, score_st.message());
+          }
+        }
+        auto agrees = [&](const double* s) {
+          return std::isfinite(s[0]) && std::isfinite(s[1]) && s[0] > 0 &&
+                 s[1] >= (1.0 - cfg.orb_refine_max_score_loss) * s[0];
+        };
         if (d.m > cfg.orb_refine_max_move_m || d.rad > cfg.orb_refine_max_move_rad) {
           why = format("the ORB fit is %.2f m / %.1f deg from the NDT fit", d.m, d.rad * kRadToDeg);
-        } else if (!(std::isfinite(s_ndt) && std::isfinite(s_orb) && s_ndt > 0 &&
-                     s_orb >= (1.0 - cfg.orb_refine_max_score_loss) * s_ndt)) {
-          why = format("the ORB fit scores %.3f per structure point in NDT against the NDT fit's %.3f", s_orb,
-                       s_ndt);
+        } else if (!agrees(scores[0]) || !agrees(scores[1])) {
+          why = format(
+              "NDT scores the ORB fit %.3f (structure) / %.3f (all) per point against the NDT fit's %.3f / "
+              "%.3f",
+              scores[0][1], scores[1][1], scores[0][0], scores[1][0]);
         } else {
           ++res.orb_refine_accepted;
           h.orb_refined = true;
@@ -1018,10 +1049,10 @@ RelocalizationResult Relocalizer::relocalize(const RelocalizationQuery& q, Prior
           h.fine.T_target_source = o.T_prior_world;
           h.fine.converged = true;
           h.fine.failure = NdtFailure::kNone;
-          h.fine_score = s_orb;
+          h.fine_score = scores[1][1];  // per fine-source point, as the other hypotheses' scores
         }
       }
-      if (!h.orb_refined) res.orb_refine_last_failure = why;
+      if (!h.orb_refined && res.orb_refine_failure.empty()) res.orb_refine_failure = why;
     }
     ++picked;
   }
@@ -1107,7 +1138,7 @@ RelocalizationResult Relocalizer::relocalize(const RelocalizationQuery& q, Prior
     for (const Hypothesis& h : m.hypotheses) {
       if (h.fine_run) why += std::string(why.empty() ? "" : ", ") + ndt_failure_name(h.fine.failure);
     }
-    if (res.orb_refine_attempts > 0) why += "; ORB refinement: " + res.orb_refine_last_failure;
+    if (res.orb_refine_attempts > 0) why += "; ORB refinement: " + res.orb_refine_failure;
     return done(RelocalizationReason::kNdtFailed,
                 "relocalizer: the fine NDT did not converge from any of the " + std::to_string(picked) +
                     " best coarse poses (" + why + ")");
@@ -1208,9 +1239,12 @@ RelocalizationResult Relocalizer::relocalize(const RelocalizationQuery& q, Prior
   // An ORB-refined fit far from its one-keyframe ORB seed: appearance pointed elsewhere too (a
   // repeated texture: the sim's outdoor seeds 4.08 m off), so the seed's pose competes in the
   // structure margin as it is (NDT from it is what moved away to the fit).
-  if (best->orb_refined && best->from_orb && distinct(best->T_seed) && gates_ok(best->T_seed)) {
-    m.rival_poses.push_back(best->T_seed);
-    ++res.rivals_evaluated;
+  // Only a seed beyond max_ndt_correction (the test it no longer faces); it is not aligned, so it
+  // does not count as an evaluated rival (margin_known).
+  if (best->orb_refined && best->from_orb && gates_ok(best->T_seed)) {
+    const PoseDistance d = pose_distance(best->T_seed, T, m.centroid_world);
+    if (d.m > cfg.max_ndt_correction_m || d.rad > cfg.max_ndt_correction_rad)
+      m.rival_poses.push_back(best->T_seed);
   }
   for (const Hypothesis& h : m.hypotheses) {
     if (&h == best) continue;

@@ -46,7 +46,8 @@
 //     it replaces the NDT pose only when that fit pins every direction and NDT scores it about as
 //     well (the geometry agrees), else the fit stays rejected as degenerate.
 //  e. Acceptance, so that a pose is returned only when it is unambiguous (0 false relocalizations
-//     is an acceptance goal of the issue): the fine NDT converged (not degenerate), its inlier ratio
+//     is an acceptance goal of the issue): the fine NDT converged (not degenerate, or degenerate and
+//     ORB-refined, step d'), its inlier ratio
 //     is at least min_inlier_ratio, it agrees with the priors given (yaw gate; the position within
 //     position_gate_sigmas sigma + position_gate_margin_m) and, for an ORB seed, NDT moved it by at
 //     most max_ndt_correction_m / _rad; the current keyframe's ORB matches with the prior keyframes
@@ -203,12 +204,15 @@ struct RelocalizerConfig {
   // pose-only fit from the consensus (estimation::MotionOnlyRefiner: reprojection and depth residuals,
   // Huber). It replaces the NDT pose when it has orb_refine_min_inliers inliers, its covariance pins
   // every direction (largest position and rotation sigma at most orb_refine_max_sigma_m / _rad), it
-  // moved the fit by at most orb_refine_max_move_m / _rad, and the geometry agrees: the structure
-  // points' NDT score at the refined pose is at least (1 - orb_refine_max_score_loss) of the score at
-  // the NDT pose (along a weak direction NDT's cost is flat; a pose that contradicts the structure
-  // scores less). Only tried with min_structure_points structure points: texture alone can repeat
-  // (the sim's outdoor ground pattern gave consistent ORB fits 4.09 m off; on a ground-only local map
-  // one was accepted).
+  // moved the fit by at most orb_refine_max_move_m / _rad, and the geometry agrees: the NDT score
+  // per point of the structure points and of the whole fine source (the ground: z, roll, pitch) at the
+  // refined pose is at least (1 - orb_refine_max_score_loss) of that at the NDT pose (along a weak
+  // direction NDT's cost is flat; a pose that contradicts the geometry scores less). Only the RANSAC
+  // inliers go into the pose-only fit. Step e then judges the refined fit as any other, but for its
+  // ORB seed (see max_ndt_correction) and its ORB verification, which uses keyframes the refinement
+  // also used (the 150-inlier fit stands in for it). Only tried with min_structure_points structure
+  // points: texture alone can repeat (the sim's outdoor ground pattern gave consistent ORB fits 4.09 m
+  // off; on a ground-only local map one was accepted).
   bool orb_refine = true;
   int orb_refine_keyframes = 5;
   double orb_refine_gate_px = 60.0;
@@ -320,7 +324,7 @@ struct RelocalizationResult {
   int orb_refine_attempts = 0, orb_refine_accepted = 0;
   int orb_refine_inliers = 0;  // of the best fit's refinement
   double orb_refine_sigma_m = 0, orb_refine_sigma_rad = 0;
-  std::string orb_refine_last_failure;
+  std::string orb_refine_failure;  // the first failed attempt's (the best coarse fit is refined first)
   double wall_s = 0;
   // Where the time went: a + b (sampling, votes), c (matching, RANSAC, seeds), d + e (prior points,
   // NDT, acceptance); index_s: building the prior's LSH index (first call with a prior map, part of
