@@ -9,6 +9,7 @@
 // corridor the translation is unconstrained, a wall only now and then).
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <cstdio>
 #include <string>
 #include <vector>
@@ -263,6 +264,17 @@ TEST(PriorMapUpdater, GivenALargePoseErrorThenNothingIsDeleted) {
   EXPECT_GT(o.counters.frames_misaligned, 0u);
 }
 
+// The scene's prior points in one carver: the refiner's view of its single prior segment.
+FreeSpaceCarver make_prior_carver(const Scene& s, const PriorMapUpdaterConfig& uc) {
+  auto carver = FreeSpaceCarver::create(uc.carver, s.total_points);
+  if (!carver.ok()) {
+    ADD_FAILURE() << carver.status().message();
+    std::abort();  // nothing to test without it
+  }
+  EXPECT_TRUE(carver->set_prior(s.points_segment.data(), s.total_points).ok());
+  return std::move(carver).value();
+}
+
 // The refiner alone on the sim lab's current views (each on its own, no carried correction).
 struct RefinerRun {
   double worst_m = 0, worst_deg = 0;  // exact starts: how far the result moved
@@ -272,10 +284,8 @@ struct RefinerRun {
 TEST(PriorPoseRefiner, GivenExactPosesThenTheyAreHardlyMoved) {
   const Scene& s = scene();
   const PriorMapUpdaterConfig uc;
-  auto carver = FreeSpaceCarver::create(uc.carver, s.total_points);
-  ASSERT_TRUE(carver.ok());
-  ASSERT_TRUE(carver->set_prior(s.points_segment.data(), s.total_points).ok());
-  const PriorView view{&carver.value(), s.T_prior_segment};
+  FreeSpaceCarver carver = make_prior_carver(s, uc);
+  const PriorView view{&carver, s.T_prior_segment};
   auto refiner = PriorPoseRefiner::create(uc.refine, s.K);
   ASSERT_TRUE(refiner.ok()) << refiner.status().message();
   RefinerRun run;
@@ -302,10 +312,8 @@ TEST(PriorPoseRefiner, GivenExactPosesThenTheyAreHardlyMoved) {
 TEST(PriorPoseRefiner, GivenATooLargeCorrectionTooFewRaysOrNoConvergenceThenTheGuessComesBackUnchanged) {
   const Scene& s = scene();
   const PriorMapUpdaterConfig uc;
-  auto carver = FreeSpaceCarver::create(uc.carver, s.total_points);
-  ASSERT_TRUE(carver.ok());
-  ASSERT_TRUE(carver->set_prior(s.points_segment.data(), s.total_points).ok());
-  const PriorView view{&carver.value(), s.T_prior_segment};
+  FreeSpaceCarver carver = make_prior_carver(s, uc);
+  const PriorView view{&carver, s.T_prior_segment};
   auto refine_with = [&](PriorPoseRefinerConfig c, const CurrentFrame& f, const PriorPoseGuess& guess) {
     auto refiner = PriorPoseRefiner::create(c, s.K);
     EXPECT_TRUE(refiner.ok()) << refiner.status().message();
@@ -353,10 +361,8 @@ TEST(PriorPoseRefiner, GivenATooLargeCorrectionTooFewRaysOrNoConvergenceThenTheG
 TEST(PriorPoseRefiner, GivenARelocalizationSizedErrorThenTheConstrainedDirectionsAreRecovered) {
   const Scene& s = scene();
   const PriorMapUpdaterConfig uc;
-  auto carver = FreeSpaceCarver::create(uc.carver, s.total_points);
-  ASSERT_TRUE(carver.ok());
-  ASSERT_TRUE(carver->set_prior(s.points_segment.data(), s.total_points).ok());
-  const PriorView view{&carver.value(), s.T_prior_segment};
+  FreeSpaceCarver carver = make_prior_carver(s, uc);
+  const PriorView view{&carver, s.T_prior_segment};
   auto refiner = PriorPoseRefiner::create(uc.refine, s.K);
   ASSERT_TRUE(refiner.ok());
   const Eigen::Isometry3d error = relocalization_error();
