@@ -24,7 +24,7 @@
 //   hwr-bench reloc [--scenes lab,outdoor] [--starts 50] [--quick] [--seed 1] [--prior-cache DIR]
 //                   [--robot PATH] [--false-starts 20] [--max-attempts 8] [--first-motion-m 1]
 //                   [--attempt-step-m 1] [--max-motion-m 8] [--keyframe-step 12] [--verbose]
-//                   [--sets neither,imu,gnss,both] [--orb-refine on|off]
+//                   [--sets neither,imu,gnss,both] [--orb-refine all|weak|off]
 
 #include "bench_command.hpp"
 
@@ -72,7 +72,9 @@ struct Options {
   size_t keyframe_step = 12;
   bool verbose = false;
   std::vector<std::string> sets = {"neither", "imu", "gnss", "both"};  // rows to run (set_key)
-  std::string orb_refine = "on";  // step d' (relocalizer.hpp): on (default), off
+  // Step d' (relocalizer.hpp): all (the default: degenerate and converged fine fits), weak (degenerate
+  // only), off.
+  std::string orb_refine = "all";
 };
 
 // ---- sensor sets (paper Table IV columns) ----
@@ -381,6 +383,14 @@ core::Status run_start(const Options& o, Prior* prior, recon::Relocalizer* reloc
                     start->first_frame(), set_key(s.set), a + 1, q.moved_m, static_cast<size_t>(*k + 1),
                     local->size(), r.localized ? "LOCALIZED" : "not localized", r.wall_s, note.c_str(),
                     r.message.c_str());
+        const recon::RelocalizationCounters& n = r.counters;
+        std::printf(
+            "      stages: appearance %.3f s (index %.3f), geometry %.3f s, NDT %.3f s; %d candidates, %d "
+            "ranked, "
+            "%d RANSAC hypotheses, %d seeds, %d NDT runs (%d from rival seeds), target <= %lld points\n",
+            r.appearance_s, r.index_s, r.geometry_s, r.ndt_s, n.candidates, n.appearance_ranked,
+            n.ransac_hypotheses, n.fallback_seeds, n.ndt_runs, n.rival_seeds,
+            static_cast<long long>(n.target_points));
       }
       if (o.verbose && !r.localized && r.best_fit_valid) {
         // The rejected best fit: was the rejection right?
@@ -400,13 +410,12 @@ core::Status run_start(const Options& o, Prior* prior, recon::Relocalizer* reloc
         std::printf("\n");
       }
       if (o.verbose && r.best_fit_valid && r.orb_refined) {
-        // Step d' replaced a degenerate NDT fit: how far off was NDT alone?
+        // Step d' replaced the NDT fit: how far off was NDT alone?
         const PoseError e = pose_error(r.T_prior_world_ndt * T_world_cam, truth.T_prior_cam_local);
         const PoseError e_fit = pose_error(r.T_prior_world_best_fit * T_world_cam, truth.T_prior_cam_local);
         std::printf(
-            "      ORB-refined fit: error local %.2f cm %.3f deg; the degenerate NDT fit's %.2f cm %.3f "
-            "deg\n",
-            e_fit.cm, e_fit.deg, e.cm, e.deg);
+            "      ORB-refined fit: error local %.2f cm %.3f deg; the %s NDT fit's %.2f cm %.3f deg\n",
+            e_fit.cm, e_fit.deg, r.orb_refined_weak ? "degenerate" : "converged", e.cm, e.deg);
       }
       if (r.localized) {
         const Eigen::Isometry3d T_prior_cam = r.T_prior_world * T_world_cam;
@@ -499,8 +508,8 @@ int run_reloc(int argc, char** argv) {
       o.verbose = true;
     } else if (a == "--orb-refine") {
       o.orb_refine = value("--orb-refine");
-      if (o.orb_refine != "off" && o.orb_refine != "on") {
-        std::fprintf(stderr, "reloc: --orb-refine takes on or off\n");
+      if (o.orb_refine != "off" && o.orb_refine != "weak" && o.orb_refine != "all") {
+        std::fprintf(stderr, "reloc: --orb-refine takes all, weak or off\n");
         return 2;
       }
     } else if (a == "--sets") {
@@ -518,7 +527,7 @@ int run_reloc(int argc, char** argv) {
                    "usage: hwr-bench reloc [--scenes lab,outdoor] [--starts N] [--quick] [--seed S]\n"
                    "       [--prior-cache DIR] [--robot PATH] [--false-starts N] [--max-attempts N]\n"
                    "       [--first-motion-m M] [--attempt-step-m M] [--max-motion-m M] [--keyframe-step N] "
-                   "[--verbose]\n       [--sets neither,imu,gnss,both] [--orb-refine on|off]\n");
+                   "[--verbose]\n       [--sets neither,imu,gnss,both] [--orb-refine all|weak|off]\n");
       return a == "--help" || a == "-h" ? 0 : 2;
     }
   }
@@ -535,6 +544,7 @@ int run_reloc(int argc, char** argv) {
   const auto t_bench = std::chrono::steady_clock::now();
   recon::RelocalizerConfig rcfg;  // the defaults, but for --orb-refine
   rcfg.orb_refine = o.orb_refine != "off";
+  rcfg.orb_refine_converged = o.orb_refine == "all";
   std::printf(
       "hwr-bench reloc: %d starts per scene (seed %llu), %d false starts (outdoor vs lab prior); attempts "
       "from %.1f m "
@@ -588,6 +598,17 @@ int run_reloc(int argc, char** argv) {
     const auto t_index = std::chrono::steady_clock::now();
     sc.reloc->prepare(*sc.prior->map);
     sc.prior->index_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_index).count();
+    // As RelocalizationWorker does at start: the clouds within the budget are read before any attempt.
+    const auto t_preload = std::chrono::steady_clock::now();
+    const recon::PreloadStats preload = sc.prior->map->preload_clouds();
+    std::printf(
+        "prior %s: clouds preloaded in %.2f s: %d of %zu segments, %lld points (thinned to %.2f m; "
+        "%lld stored points read), %d over the budget of %lld, %d unreadable\n",
+        name.c_str(), std::chrono::duration<double>(std::chrono::steady_clock::now() - t_preload).count(),
+        preload.segments_in_memory, sc.prior->map->segments().size(),
+        static_cast<long long>(preload.points_in_memory), sc.prior->map->config().cloud_voxel_m,
+        static_cast<long long>(sc.prior->map->counters().points_read), preload.segments_over_budget,
+        static_cast<long long>(sc.prior->map->config().max_loaded_points), preload.segments_unreadable);
     std::printf(
         "prior %s: %s (%zu keyframes, %zu segments; opened in %.2f s, LSH index %.2f s%s)%s\n", name.c_str(),
         sc.prior->dir.c_str(), sc.prior->map->keyframes().size(), sc.prior->map->segments().size(),

@@ -312,7 +312,8 @@ struct Evaluation {
 }  // namespace
 
 struct NdtAligner::Impl {
-  explicit Impl(const NdtConfig& c, NdtTarget t) : config(c), target(std::move(t)) {
+  explicit Impl(const NdtConfig& c, std::vector<NdtTarget> t) : config(c), targets(std::move(t)) {
+    built.resize(targets.size());
     chunk_sums.assign(kChunks, Sums{});
     if (c.num_threads > 1) pool = std::make_unique<WorkerPool>(c.num_threads - 1, chunk_sums.data());
   }
@@ -349,7 +350,14 @@ struct NdtAligner::Impl {
                  NdtFailure* failure);
 
   NdtConfig config;
-  NdtTarget target;  // align()'s per-level target
+  // align()'s targets, one per level, and what each was last built from (target_version != 0).
+  struct BuiltFrom {
+    const float* xyz = nullptr;
+    int n = -1, stride_floats = 0;
+    uint64_t version = 0;
+  };
+  std::vector<NdtTarget> targets;
+  std::vector<BuiltFrom> built;
   std::vector<Sums> chunk_sums;
   std::unique_ptr<WorkerPool> pool;
   Evaluation trial;  // the line search's last evaluation
@@ -457,9 +465,15 @@ bool NdtAligner::Impl::run_level(const NdtTarget::Impl& tg, const PointsView& so
 }
 
 core::Expected<NdtAligner> NdtAligner::create(const NdtConfig& config) {
-  auto target = NdtTarget::create(config);
-  if (!target.ok()) return target.status();
-  return NdtAligner(std::make_unique<Impl>(config, std::move(target.value())));
+  std::vector<NdtTarget> targets;
+  for (double resolution : config.resolutions_m) {
+    if (resolution == 0.0 && !targets.empty()) break;
+    auto target = NdtTarget::create(config);  // checks the config (a list without levels fails here)
+    if (!target.ok()) return target.status();
+    targets.push_back(std::move(target.value()));
+    if (resolution == 0.0) break;
+  }
+  return NdtAligner(std::make_unique<Impl>(config, std::move(targets)));
 }
 
 NdtAligner::NdtAligner(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
@@ -586,7 +600,7 @@ NdtResult NdtAligner::align_level(const NdtTarget& target, const PointsView& sou
 }
 
 NdtResult NdtAligner::align(const PointsView& target, const PointsView& source,
-                            const Eigen::Isometry3d& T_target_source_guess) {
+                            const Eigen::Isometry3d& T_target_source_guess, uint64_t target_version) {
   NdtResult result;
   SourceStats stats;
   const NdtConfig& config = impl_->config;
@@ -603,17 +617,27 @@ NdtResult NdtAligner::align(const PointsView& target, const PointsView& source,
     if (resolution == 0.0) break;
     finest_m = resolution;
   }
-  for (double resolution : config.resolutions_m) {
+  for (size_t l = 0; l < config.resolutions_m.size(); ++l) {
+    const double resolution = config.resolutions_m[l];
     if (resolution == 0.0) break;
-    if (!impl_->target.build(target, resolution).ok()) {  // capacity: the only error a valid view can give
-      result.T_target_source = cur.T;
-      result.converged = false;
-      result.failure = NdtFailure::kInvalidInput;
-      return result;
+    NdtTarget& level_target = impl_->targets[l];
+    Impl::BuiltFrom& from = impl_->built[l];
+    const bool reuse = target_version != 0 && from.version == target_version && from.xyz == target.xyz &&
+                       from.n == target.n && from.stride_floats == target.stride_floats;
+    if (!reuse) {
+      from = Impl::BuiltFrom{};
+      if (!level_target.build(target, resolution).ok()) {  // capacity: the only error a valid view can give
+        result.T_target_source = cur.T;
+        result.converged = false;
+        result.failure = NdtFailure::kInvalidInput;
+        return result;
+      }
+      if (target_version != 0)
+        from = Impl::BuiltFrom{target.xyz, target.n, target.stride_floats, target_version};
     }
     // A coarse level only seeds the next one: its epsilons grow with its voxel side.
     const double epsilon_scale = std::max(1.0, resolution / finest_m);
-    if (!impl_->level(*impl_->target.impl_, source, stats, epsilon_scale, &cur, &pivot, &result))
+    if (!impl_->level(*level_target.impl_, source, stats, epsilon_scale, &cur, &pivot, &result))
       return result;
   }
   finish(config, cur, pivot, stats, &result);

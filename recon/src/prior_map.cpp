@@ -6,6 +6,7 @@
 #include <limits>
 
 #include "hwr/core/log.hpp"
+#include "hwr/recon/cloud_thinning.hpp"
 #include "hwr/estimation/descriptor.hpp"
 
 namespace hwr::recon {
@@ -43,11 +44,11 @@ double distance_to_box(const Eigen::AlignedBox3d& box, const Eigen::Vector3d& p)
 
 core::Expected<PriorMap> PriorMap::open(const std::string& dir, const PriorMapConfig& config) {
   if (!(config.max_loaded_points >= 1) || !(config.max_prior_features >= 1) || !(config.cloud_reach_m >= 0) ||
-      !std::isfinite(config.cloud_reach_m) || config.orb_levels < 1 || !(config.orb_scale_factor >= 1.0f)) {
+      !std::isfinite(config.cloud_reach_m) || config.orb_levels < 1 || !(config.orb_scale_factor >= 1.0f) ||
+      !(config.cloud_voxel_m >= 0) || !std::isfinite(config.cloud_voxel_m)) {
     return core::InvalidArgument(
-        "prior map: max_loaded_points and max_prior_features must be >= 1, cloud_reach_m finite and >= 0, "
-        "orb_levels >= 1 and "
-        "orb_scale_factor >= 1");
+        "prior map: max_loaded_points and max_prior_features must be >= 1, cloud_reach_m and cloud_voxel_m "
+        "finite and >= 0, orb_levels >= 1 and orb_scale_factor >= 1");
   }
   auto store = MapStore::open_existing(dir);
   if (!store.ok()) return core::Status(store.status().code(), "prior map: " + store.status().message());
@@ -148,6 +149,14 @@ core::Status PriorMap::load_cloud(size_t index) {
   if (!rec.ok()) return core::Status(rec.status().code(), "prior map: " + rec.status().message());
   std::vector<CloudPoint>& cloud = clouds_prior_[index];
   cloud = std::move(rec->points_segment);
+  if (config_.cloud_voxel_m > 0) {
+    // Thinned in the segment frame, where the map's voxels were (PriorMapConfig::cloud_voxel_m).
+    auto thinned = thin_cloud(&cloud, config_.cloud_voxel_m);
+    if (!thinned.ok()) return thinned.status();
+    counters_.points_read += thinned->points_in;
+  } else {
+    counters_.points_read += static_cast<int64_t>(cloud.size());
+  }
   // Segment frame -> prior frame, once at load (the points are then searched and copied as they are).
   const Eigen::Isometry3f T = s.T_prior_segment.cast<float>();
   Eigen::AlignedBox3d box;
@@ -167,6 +176,38 @@ core::Status PriorMap::load_cloud(size_t index) {
   ++counters_.loaded_segments;
   ++counters_.cloud_loads;
   return core::Status::Ok();
+}
+
+PreloadStats PriorMap::preload_clouds() {
+  PreloadStats stats;
+  for (size_t i = 0; i < segments_.size(); ++i) {
+    PriorSegment& s = segments_[i];
+    if (s.loaded || s.unreadable) continue;
+    // s.points is segment.yaml's count until read: thinned, the cloud is smaller, so try it.
+    const core::Status st = load_cloud(i);
+    if (!st.ok()) {
+      s.unreadable = true;
+      ++counters_.unreadable_segments;
+      ++stats.segments_unreadable;
+      HWR_LOG_WARN("prior-map", "segment %u: cloud unreadable, skipped from now on: %s", s.segment_id,
+                   st.message().c_str());
+      continue;
+    }
+    if (counters_.loaded_points > config_.max_loaded_points) {
+      // Full: this and the rest stay on disk (a large map is not read through to find small clouds).
+      evict(i);
+      --counters_.cloud_evictions;  // not a cache eviction: it never was in the budget
+      for (size_t j = i; j < segments_.size(); ++j) {
+        stats.segments_over_budget += (!segments_[j].loaded && !segments_[j].unreadable) ? 1 : 0;
+      }
+      break;
+    }
+    last_used_[i] = 0;  // least recently used: the first to go when a query needs room
+    ++stats.segments_loaded;
+  }
+  for (const PriorSegment& s : segments_) stats.segments_in_memory += s.loaded ? 1 : 0;
+  stats.points_in_memory = counters_.loaded_points;
+  return stats;
 }
 
 core::Expected<PointsNearStats> PriorMap::points_near(const Eigen::Vector3d& p_prior_m, double radius_m,

@@ -220,6 +220,11 @@ void RelocalizationWorker::run() {
   // The appearance index over every prior descriptor (~1 s for the lab's map): built here, so the
   // first attempt's time is the relocalization's and the robot starts without waiting for it.
   relocalizer_.prepare(prior_);
+  // The clouds that fit the prior map's budget, read now for the same reason (prior_map.hpp).
+  const PreloadStats preload = prior_.preload_clouds();
+  HWR_LOG_INFO("reloc-worker", "prior map: %d of %zu segment clouds in memory (%lld points), %d left on disk",
+               preload.segments_in_memory, prior_.segments().size(),
+               static_cast<long long>(preload.points_in_memory), preload.segments_over_budget);
   {
     std::lock_guard<std::mutex> lock(mutex_);
     busy_.store(false, std::memory_order_release);

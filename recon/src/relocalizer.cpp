@@ -380,7 +380,8 @@ struct Relocalizer::Impl {
     return rr;
   }
 
-  core::Status gather_target(PriorMap* prior, const Eigen::Vector3d& center, PointsView* view,
+  // The view is strided to at most max_points.
+  core::Status gather_target(PriorMap* prior, const Eigen::Vector3d& center, int max_points, PointsView* view,
                              RelocalizationCounters* counters);
   // Subsamples the local map into `source` (stride), with its centroid and extent.
   void subsample_source(const PointsView& local);
@@ -407,8 +408,11 @@ struct Relocalizer::Impl {
   estimation::MotionOnlyRefiner refiner;  // step d'
   NdtAligner ndt_coarse, ndt_fine;
   // Step e's structure margin: the local map's structure points (current world, packed xyz) and the
-  // prior target they are scored against, rebuilt per pose and resolution.
+  // prior target they are scored against, built again when the gathered target or the resolution
+  // changed.
   NdtTarget score_target;
+  uint64_t score_target_version = 0;
+  double score_target_resolution_m = 0;
   std::vector<float> structure;
   int n_structure = 0;
   std::vector<float> fine_source;  // the fine stage's source (step d): structure + some of the rest
@@ -425,6 +429,9 @@ struct Relocalizer::Impl {
   double extent_m = 0;
   std::vector<CloudPoint> target;  // prior frame
   bool target_valid = false;
+  // Numbers each gather (never 0), so that the aligners and score_target rebuild their voxel
+  // Gaussians only when the target changed (NdtAligner::align's target_version).
+  uint64_t target_version = 0;
   Eigen::Vector3d target_center = Eigen::Vector3d::Zero();
   std::vector<Eigen::Vector3d> keyframe_positions;
   std::vector<int> candidates;
@@ -476,9 +483,14 @@ double Relocalizer::Impl::points_score(PriorMap* prior, const Eigen::Isometry3d&
                                        RelocalizationCounters* counters, core::Status* error) {
   const double nan = std::numeric_limits<double>::quiet_NaN();
   PointsView view;
-  *error = gather_target(prior, T_prior_world * centroid_world, &view, counters);
+  *error = gather_target(prior, T_prior_world * centroid_world, config.max_target_points, &view, counters);
   if (!error->ok() || points.n < 1) return nan;
-  if (!score_target.build(view, resolution_m).ok()) return nan;
+  if (score_target_version != target_version || score_target_resolution_m != resolution_m) {
+    score_target_version = 0;
+    if (!score_target.build(view, resolution_m).ok()) return nan;
+    score_target_version = target_version;
+    score_target_resolution_m = resolution_m;
+  }
   // With the pivot at the origin the parameterisation's pose is T(x) p = Exp(phi) p + t (ndt.hpp).
   Eigen::Matrix<double, 6, 1> x;
   x.head<3>() = T_prior_world.translation();
@@ -574,7 +586,7 @@ OrbRefinement Relocalizer::Impl::orb_refine(const Eigen::Isometry3d& T_prior_wor
   return out;
 }
 
-core::Status Relocalizer::Impl::gather_target(PriorMap* prior, const Eigen::Vector3d& center,
+core::Status Relocalizer::Impl::gather_target(PriorMap* prior, const Eigen::Vector3d& center, int max_points,
                                               PointsView* view, RelocalizationCounters* counters) {
   if (!target_valid || (center - target_center).norm() > kTargetReuseM) {
     const double radius_m = extent_m + config.target_margin_m + kTargetReuseM;
@@ -585,10 +597,11 @@ core::Status Relocalizer::Impl::gather_target(PriorMap* prior, const Eigen::Vect
     }
     target_valid = true;
     target_center = center;
+    ++target_version;
     counters->target_points = std::max<int64_t>(counters->target_points, static_cast<int64_t>(target.size()));
   }
   const int n = static_cast<int>(target.size());
-  const int stride = std::max(1, (n + config.max_target_points - 1) / config.max_target_points);
+  const int stride = std::max(1, (n + max_points - 1) / max_points);
   view->xyz = n > 0 ? &target[0].x_m : nullptr;
   view->n = n / stride;
   view->stride_floats = 4 * stride;  // CloudPoint is 4 floats wide
@@ -682,6 +695,12 @@ core::Expected<Relocalizer> Relocalizer::create(const RelocalizerConfig& c, cons
         "relocalizer: max_source_points / max_target_points must be >= 1 and within the NDT configs' "
         "capacities");
   }
+  if (c.coarse_source_points < 2 * c.ndt_coarse.min_source_points || c.coarse_target_points < 1 ||
+      c.coarse_target_points > c.ndt_coarse.max_target_points) {
+    return core::InvalidArgument(
+        "relocalizer: coarse_source_points must be >= 2 x ndt_coarse.min_source_points (a strided source "
+        "keeps at least half of it) and coarse_target_points in [1, ndt_coarse.max_target_points]");
+  }
   for (double v : {c.candidate_sigma_factor,
                    c.yaw_gate_sigmas,
                    c.yaw_gate_margin_rad,
@@ -707,7 +726,9 @@ core::Expected<Relocalizer> Relocalizer::create(const RelocalizerConfig& c, cons
                    c.orb_refine_max_sigma_rad,
                    c.orb_refine_max_score_loss,
                    c.orb_refine_max_move_m,
-                   c.orb_refine_max_move_rad}) {
+                   c.orb_refine_max_move_rad,
+                   c.orb_refine_converged_max_move_m,
+                   c.orb_refine_converged_max_move_rad}) {
     if (!(v >= 0) || !std::isfinite(v)) {
       return core::InvalidArgument(
           "relocalizer: sigma factors, gates, margins and thresholds must be finite and >= 0");
@@ -784,7 +805,10 @@ RelocalizationResult Relocalizer::relocalize(const RelocalizationQuery& q, Prior
         "relocalizer: the local map has " + std::to_string(m.n_source) + " finite points; NDT needs " +
             std::to_string(std::max(cfg.ndt_coarse.min_source_points, cfg.ndt_fine.min_source_points)));
   }
-  const PointsView source{m.source.data(), m.n_source, 3};
+  // The coarse stage's source: every k-th point of it, at most coarse_source_points.
+  const int coarse_stride =
+      std::max(1, (m.n_source + cfg.coarse_source_points - 1) / cfg.coarse_source_points);
+  const PointsView source{m.source.data(), m.n_source / coarse_stride, 3 * coarse_stride};
   StructurePointsConfig structure_config;
   structure_config.voxel_m = cfg.structure_voxel_m;
   structure_config.min_normal_z = cfg.structure_min_normal_z;
@@ -950,15 +974,76 @@ RelocalizationResult Relocalizer::relocalize(const RelocalizationQuery& q, Prior
 
   res.geometry_s = seconds_since(t_geometry);
 
+  // Step d': the ORB refinement of a fine fit and the geometry's agreement with it. weak: the fit is
+  // degenerate (a move up to orb_refine_max_move), else converged (a polish, up to
+  // orb_refine_converged_max_move). status: a prior map error.
+  struct Refined {
+    bool ok = false;
+    Eigen::Isometry3d T_prior_world = Eigen::Isometry3d::Identity();
+    int inliers = 0;
+    double sigma_m = 0, sigma_rad = 0, fine_source_score = 0;
+    std::string why;
+    core::Status status;
+  };
+  auto refine_by_orb = [&](const Eigen::Isometry3d& T_fit, bool weak) -> Refined {
+    Refined out;
+    if (m.n_structure < cfg.min_structure_points) {
+      // Texture alone can repeat (the sim's outdoor ground pattern every 4.1 m gave a consistent
+      // ORB fit 4.09 m off, accepted on a ground-only local map): only structure can vouch for it.
+      out.why = format("not tried: %.0f structure points (< %.0f): appearance alone can repeat",
+                       m.n_structure, cfg.min_structure_points);
+      return out;
+    }
+    const OrbRefinement o = m.orb_refine(T_fit, q, *prior);
+    out.why = o.why;
+    if (!o.ok) return out;
+    const PoseDistance d = pose_distance(T_fit, o.T_prior_world, m.centroid_world);
+    double fine_resolution = 0;
+    for (double r : cfg.ndt_fine.resolutions_m) fine_resolution = r > 0 ? r : fine_resolution;
+    // The geometry must agree: the structure (x, y, yaw) and the whole fine source (the ground
+    // too: z, roll, pitch) score the ORB pose about as well as the NDT fit.
+    double scores[2][2];  // [structure, fine source][NDT fit, ORB fit]
+    const PointsView score_points[2] = {{m.structure.data(), m.n_structure, 3}, fine_source};
+    for (int k = 0; k < 2; ++k) {
+      for (int j = 0; j < 2; ++j) {
+        scores[k][j] = m.points_score(prior, j == 0 ? T_fit : o.T_prior_world, score_points[k],
+                                      fine_resolution, &res.counters, &out.status);
+        if (!out.status.ok()) return out;
+      }
+    }
+    auto agrees = [&](const double* sc) {
+      return std::isfinite(sc[0]) && std::isfinite(sc[1]) && sc[0] > 0 &&
+             sc[1] >= (1.0 - cfg.orb_refine_max_score_loss) * sc[0];
+    };
+    const double max_move_m = weak ? cfg.orb_refine_max_move_m : cfg.orb_refine_converged_max_move_m;
+    const double max_move_rad = weak ? cfg.orb_refine_max_move_rad : cfg.orb_refine_converged_max_move_rad;
+    if (d.m > max_move_m || d.rad > max_move_rad) {
+      out.why = format("the ORB fit is %.2f m / %.1f deg from the NDT fit", d.m, d.rad * kRadToDeg);
+    } else if (!agrees(scores[0]) || !agrees(scores[1])) {
+      out.why = format(
+          "NDT scores the ORB fit %.3f (structure) / %.3f (all) per point against the NDT fit's %.3f / %.3f",
+          scores[0][1], scores[1][1], scores[0][0], scores[1][0]);
+    } else {
+      out.ok = true;
+      out.T_prior_world = o.T_prior_world;
+      out.inliers = o.inliers;
+      out.sigma_m = o.sigma_m;
+      out.sigma_rad = o.sigma_rad;
+      out.fine_source_score = scores[1][1];
+    }
+    return out;
+  };
+
   // ---- d. NDT, coarse, from every hypothesis ----
   for (Hypothesis& h : m.hypotheses) {
     PointsView target;
-    const core::Status st = m.gather_target(prior, h.T_seed * m.centroid_world, &target, &res.counters);
+    const core::Status st =
+        m.gather_target(prior, h.T_seed * m.centroid_world, cfg.coarse_target_points, &target, &res.counters);
     if (!st.ok()) return done(RelocalizationReason::kPriorMapError, st.message());
     ++res.counters.ndt_runs;
-    h.coarse = m.ndt_coarse.align(target, source, h.T_seed);
+    h.coarse = m.ndt_coarse.align(target, source, h.T_seed, m.target_version);
     if (coarse_usable(h.coarse, cfg.min_inlier_ratio)) {
-      h.coarse_score = h.coarse.score / m.n_source;
+      h.coarse_score = h.coarse.score / source.n;
       ++res.counters.ndt_converged;
     }
   }
@@ -990,69 +1075,34 @@ RelocalizationResult Relocalizer::relocalize(const RelocalizationQuery& q, Prior
     }
     if (duplicate) continue;
     PointsView target;
-    const core::Status st =
-        m.gather_target(prior, h.coarse.T_target_source * m.centroid_world, &target, &res.counters);
+    const core::Status st = m.gather_target(prior, h.coarse.T_target_source * m.centroid_world,
+                                            cfg.max_target_points, &target, &res.counters);
     if (!st.ok()) return done(RelocalizationReason::kPriorMapError, st.message());
     ++res.counters.ndt_runs;
     h.fine_run = true;
-    h.fine = m.ndt_fine.align(target, fine_source, h.coarse.T_target_source);
+    h.fine = m.ndt_fine.align(target, fine_source, h.coarse.T_target_source, m.target_version);
     if (h.fine.converged) h.fine_score = h.fine.score / m.n_fine_source;
     const bool weak = !h.fine.converged && h.fine.failure == NdtFailure::kDegenerate;
     if (cfg.orb_refine && weak && h.fine.inlier_ratio >= cfg.min_inlier_ratio &&
         finite_pose(h.fine.T_target_source)) {
       // Step d': NDT converged but leaves a direction weak; ORB keypoints may pin it.
       ++res.orb_refine_attempts;
-      OrbRefinement o;
-      if (m.n_structure < cfg.min_structure_points) {
-        // Texture alone can repeat (the sim's outdoor ground pattern every 4.1 m gave a consistent
-        // ORB fit 4.09 m off, accepted on a ground-only local map): only structure can vouch for it.
-        o.why = format("not tried: %.0f structure points (< %.0f): appearance alone can repeat",
-                       m.n_structure, cfg.min_structure_points);
-      } else {
-        o = m.orb_refine(h.fine.T_target_source, q, *prior);
-      }
-      std::string why = o.why;
+      const Refined o = refine_by_orb(h.fine.T_target_source, true);
+      if (!o.status.ok()) return done(RelocalizationReason::kPriorMapError, o.status.message());
       if (o.ok) {
-        const PoseDistance d = pose_distance(h.fine.T_target_source, o.T_prior_world, m.centroid_world);
-        double fine_resolution = 0;
-        for (double r : cfg.ndt_fine.resolutions_m) fine_resolution = r > 0 ? r : fine_resolution;
-        // The geometry must agree: the structure (x, y, yaw) and the whole fine source (the ground
-        // too: z, roll, pitch) score the ORB pose about as well as the NDT fit.
-        core::Status score_st;
-        double scores[2][2];  // [structure, fine source][NDT fit, ORB fit]
-        const PointsView score_points[2] = {{m.structure.data(), m.n_structure, 3}, fine_source};
-        for (int k = 0; k < 2; ++k) {
-          for (int j = 0; j < 2; ++j) {
-            scores[k][j] = m.points_score(prior, j == 0 ? h.fine.T_target_source : o.T_prior_world,
-                                          score_points[k], fine_resolution, &res.counters, &score_st);
-            if (!score_st.ok()) return done(RelocalizationReason::kPriorMapError, score_st.message());
-          }
-        }
-        auto agrees = [&](const double* s) {
-          return std::isfinite(s[0]) && std::isfinite(s[1]) && s[0] > 0 &&
-                 s[1] >= (1.0 - cfg.orb_refine_max_score_loss) * s[0];
-        };
-        if (d.m > cfg.orb_refine_max_move_m || d.rad > cfg.orb_refine_max_move_rad) {
-          why = format("the ORB fit is %.2f m / %.1f deg from the NDT fit", d.m, d.rad * kRadToDeg);
-        } else if (!agrees(scores[0]) || !agrees(scores[1])) {
-          why = format(
-              "NDT scores the ORB fit %.3f (structure) / %.3f (all) per point against the NDT fit's %.3f / "
-              "%.3f",
-              scores[0][1], scores[1][1], scores[0][0], scores[1][0]);
-        } else {
-          ++res.orb_refine_accepted;
-          h.orb_refined = true;
-          h.T_ndt = h.fine.T_target_source;
-          h.orb_refine_inliers = o.inliers;
-          h.orb_refine_sigma_m = o.sigma_m;
-          h.orb_refine_sigma_rad = o.sigma_rad;
-          h.fine.T_target_source = o.T_prior_world;
-          h.fine.converged = true;
-          h.fine.failure = NdtFailure::kNone;
-          h.fine_score = scores[1][1];  // per fine-source point, as the other hypotheses' scores
-        }
+        ++res.orb_refine_accepted;
+        h.orb_refined = true;
+        h.T_ndt = h.fine.T_target_source;
+        h.orb_refine_inliers = o.inliers;
+        h.orb_refine_sigma_m = o.sigma_m;
+        h.orb_refine_sigma_rad = o.sigma_rad;
+        h.fine.T_target_source = o.T_prior_world;
+        h.fine.converged = true;
+        h.fine.failure = NdtFailure::kNone;
+        h.fine_score = o.fine_source_score;  // per fine-source point, as the other hypotheses' scores
+      } else if (res.orb_refine_failure.empty()) {
+        res.orb_refine_failure = o.why;
       }
-      if (!h.orb_refined && res.orb_refine_failure.empty()) res.orb_refine_failure = why;
     }
     ++picked;
   }
@@ -1151,6 +1201,7 @@ RelocalizationResult Relocalizer::relocalize(const RelocalizationQuery& q, Prior
   res.best_fit_valid = true;
   res.best_inlier_ratio = best->fine.inlier_ratio;
   res.orb_refined = best->orb_refined;
+  res.orb_refined_weak = best->orb_refined;
   if (best->orb_refined) {
     res.T_prior_world_ndt = best->T_ndt;
     res.orb_refine_inliers = best->orb_refine_inliers;
@@ -1266,22 +1317,24 @@ RelocalizationResult Relocalizer::relocalize(const RelocalizationQuery& q, Prior
   auto evaluate_rival = [&](const Eigen::Isometry3d& T_seed) -> core::Status {
     Hypothesis r;
     PointsView target;
-    core::Status st = m.gather_target(prior, T_seed * m.centroid_world, &target, &res.counters);
+    core::Status st =
+        m.gather_target(prior, T_seed * m.centroid_world, cfg.coarse_target_points, &target, &res.counters);
     if (!st.ok()) return st;
     ++res.counters.ndt_runs;
     ++res.counters.rival_seeds;
-    r.coarse = m.ndt_coarse.align(target, source, T_seed);
+    r.coarse = m.ndt_coarse.align(target, source, T_seed, m.target_version);
     if (!finite_pose(r.coarse.T_target_source) || r.coarse.failure == NdtFailure::kNonFinite ||
         r.coarse.failure == NdtFailure::kInvalidInput) {
       return core::Status::Ok();
     }
     const bool coarse_rivals = coarse_usable(r.coarse, cfg.min_inlier_ratio) &&
                                distinct(r.coarse.T_target_source) && gates_ok(r.coarse.T_target_source);
-    if (coarse_rivals) coarse_rival = std::max(coarse_rival, r.coarse.score / m.n_source);
-    st = m.gather_target(prior, r.coarse.T_target_source * m.centroid_world, &target, &res.counters);
+    if (coarse_rivals) coarse_rival = std::max(coarse_rival, r.coarse.score / source.n);
+    st = m.gather_target(prior, r.coarse.T_target_source * m.centroid_world, cfg.max_target_points, &target,
+                         &res.counters);
     if (!st.ok()) return st;
     ++res.counters.ndt_runs;
-    r.fine = m.ndt_fine.align(target, fine_source, r.coarse.T_target_source);
+    r.fine = m.ndt_fine.align(target, fine_source, r.coarse.T_target_source, m.target_version);
     if (!finite_pose(r.fine.T_target_source) || r.fine.failure == NdtFailure::kNonFinite ||
         r.fine.failure == NdtFailure::kInvalidInput) {
       if (coarse_rivals) m.rival_poses.push_back(r.coarse.T_target_source);
@@ -1400,6 +1453,26 @@ RelocalizationResult Relocalizer::relocalize(const RelocalizationQuery& q, Prior
                     format(" fine %.2f, coarse %.2f, need %.2f; %.0f rivals evaluated)", fine_margin,
                            coarse_margin, cfg.min_score_margin, res.rivals_evaluated));
   }
+  // Accepted. A converged fit is polished now (orb_refine_converged): the verdict above was reached on
+  // NDT's pose, and the polish only replaces the pose when it moved little, the geometry agrees and the
+  // priors still allow it.
+  if (cfg.orb_refine_converged && !best->orb_refined) {
+    ++res.orb_refine_attempts;
+    const Refined o = refine_by_orb(T, false);
+    if (!o.status.ok()) return done(RelocalizationReason::kPriorMapError, o.status.message());
+    if (o.ok && gates_ok(o.T_prior_world)) {
+      ++res.orb_refine_accepted;
+      res.orb_refined = true;
+      res.T_prior_world_ndt = T;
+      res.T_prior_world = o.T_prior_world;
+      res.T_prior_world_best_fit = o.T_prior_world;
+      res.orb_refine_inliers = o.inliers;
+      res.orb_refine_sigma_m = o.sigma_m;
+      res.orb_refine_sigma_rad = o.sigma_rad;
+    } else if (res.orb_refine_failure.empty()) {
+      res.orb_refine_failure = o.ok ? std::string("the polished pose leaves the priors' gates") : o.why;
+    }
+  }
   return done(
       RelocalizationReason::kLocalized,
       format("relocalizer: localized, inlier ratio %.2f, score margin %.2f over %.0f rivals, %.0f ORB "
@@ -1407,10 +1480,12 @@ RelocalizationResult Relocalizer::relocalize(const RelocalizationQuery& q, Prior
              best->fine.inlier_ratio, res.score_margin, res.rivals_evaluated, best->orb_inliers) +
           " (margin over " + margin_over +
           format(", fine eigenvalue ratio %.4f)", best->fine.eigenvalue_ratio) +
-          (best->orb_refined ? format(" (NDT weak, pose from %.0f ORB inliers, sigma %.2f cm / %.3f deg)",
-                                      best->orb_refine_inliers, 100.0 * best->orb_refine_sigma_m,
-                                      best->orb_refine_sigma_rad * kRadToDeg)
-                             : std::string()) +
+          (res.orb_refined ? format(res.orb_refined_weak
+                                        ? " (NDT weak, pose from %.0f ORB inliers, sigma %.2f cm / %.3f deg)"
+                                        : " (NDT fit polished by %.0f ORB inliers, sigma %.2f cm / %.3f deg)",
+                                    res.orb_refine_inliers, 100.0 * res.orb_refine_sigma_m,
+                                    res.orb_refine_sigma_rad * kRadToDeg)
+                           : std::string()) +
           (res.margin_known ? "" : " (no rival: the position and yaw priors pin the pose)"));
 }
 

@@ -4,14 +4,19 @@
 // depth); no cloud is read at open; points_near returns exactly the points a brute-force search
 // over every segment (moved to the prior frame with T_world_segment here) finds in the ball; a
 // point budget evicts the least-recently-used cloud no query needs (a cloud read for its estimated
-// box and found far is not needed) and skips what does not fit; a damaged keyframes.bin fails
-// open() with kCorruptData naming the file, a damaged cloud.bin is skipped (counted, never read
-// again) while the other segments answer, a missing store is kNotFound naming the path, and a
-// prior with more features than max_prior_features is refused (kOutOfRange).
+// box and found far is not needed) and skips what does not fit; thinned clouds hold, per occupied
+// voxel of the segment frame, the mean of its stored points (computed here in double) moved to the
+// prior frame; preload_clouds reads clouds in segment order until the budget is full; a damaged keyframes.bin
+// fails open() with kCorruptData naming the file, a damaged cloud.bin is skipped (counted, never read again)
+// while the other segments answer, a missing store is kNotFound naming the path, and a prior with more
+// features than max_prior_features is refused (kOutOfRange).
 
 #include <unistd.h>
 
 #include <algorithm>
+#include <array>
+#include <limits>
+#include <map>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -108,6 +113,13 @@ std::vector<SegmentRecord> make_segments() {
     out.push_back(std::move(s));
   }
   return out;
+}
+
+// Every stored point as it is (no thinning): the ball tests compare point identities.
+PriorMapConfig exact_config() {
+  PriorMapConfig c;
+  c.cloud_voxel_m = 0;
+  return c;
 }
 
 void write_store(const std::string& dir, const std::vector<SegmentRecord>& segments) {
@@ -226,7 +238,7 @@ TEST(PriorMap, GivenAPositionWhenPointsNearThenExactlyThePointsOfTheBallInThePri
   TempDir tmp;
   const std::vector<SegmentRecord> segments = make_segments();
   write_store(tmp.file("store"), segments);
-  PriorMapConfig config;
+  PriorMapConfig config = exact_config();
   config.cloud_reach_m = 2.5;  // the synthetic clouds lie within 2 sqrt(3) m of the keyframes
   auto map = PriorMap::open(tmp.file("store"), config);
   ASSERT_TRUE(map.ok()) << map.status().message();
@@ -276,7 +288,7 @@ TEST(PriorMap, GivenABudgetOfOneSegmentThenTheLeastRecentlyUsedCloudIsEvicted) {
   TempDir tmp;
   const std::vector<SegmentRecord> segments = make_segments();
   write_store(tmp.file("store"), segments);
-  PriorMapConfig config;
+  PriorMapConfig config = exact_config();
   config.cloud_reach_m = 2.5;
   config.max_loaded_points = kPointsPerSegment + kPointsPerSegment / 2;  // room for one cloud
   auto map = PriorMap::open(tmp.file("store"), config);
@@ -323,6 +335,79 @@ TEST(PriorMap, GivenABudgetOfOneSegmentThenTheLeastRecentlyUsedCloudIsEvicted) {
   expect_same_points(expected_near(segments, between, radius), out);
 }
 
+// The thinned cloud of segment k, by brute force: per occupied voxel of its frame (floor(p / voxel)),
+// the mean of its points in double, moved to the prior frame.
+std::vector<Eigen::Vector3d> thinned_prior(const SegmentRecord& s, double voxel_m) {
+  std::map<std::array<long long, 3>, std::pair<Eigen::Vector3d, int>> voxels;
+  for (const CloudPoint& p : s.points_segment) {
+    const Eigen::Vector3d q(p.x_m, p.y_m, p.z_m);
+    auto& v = voxels[{static_cast<long long>(std::floor(p.x_m / voxel_m)),
+                      static_cast<long long>(std::floor(p.y_m / voxel_m)),
+                      static_cast<long long>(std::floor(p.z_m / voxel_m))}];
+    if (v.second == 0) v.first.setZero();
+    v.first += q;
+    ++v.second;
+  }
+  std::vector<Eigen::Vector3d> out;
+  for (const auto& [key, v] : voxels) out.push_back(s.T_world_segment * (v.first / v.second));
+  return out;
+}
+
+TEST(PriorMap, GivenAThinningVoxelThenEachCloudHoldsItsVoxelMeansAndPreloadFillsTheBudget) {
+  TempDir tmp;
+  const std::vector<SegmentRecord> segments = make_segments();
+  write_store(tmp.file("store"), segments);
+  constexpr double kVoxel = 0.5;  // the 4 m cube of 2000 points: ~4 points per occupied voxel
+  std::vector<std::vector<Eigen::Vector3d>> expected;
+  for (const SegmentRecord& s : segments) expected.push_back(thinned_prior(s, kVoxel));
+  ASSERT_LT(expected[0].size(), static_cast<size_t>(kPointsPerSegment) / 2);
+
+  PriorMapConfig config;
+  config.cloud_reach_m = 2.5;
+  config.cloud_voxel_m = kVoxel;
+  // Room for the first two thinned clouds, not the third.
+  config.max_loaded_points = static_cast<int64_t>(expected[0].size() + expected[1].size());
+  auto map = PriorMap::open(tmp.file("store"), config);
+  ASSERT_TRUE(map.ok()) << map.status().message();
+  const PreloadStats pre = map->preload_clouds();
+  EXPECT_EQ(pre.segments_loaded, 2);
+  EXPECT_EQ(pre.segments_in_memory, 2);
+  EXPECT_EQ(pre.segments_over_budget, 1);
+  EXPECT_EQ(pre.segments_unreadable, 0);
+  EXPECT_EQ(pre.points_in_memory, config.max_loaded_points);
+  EXPECT_TRUE(map->segments()[0].loaded);
+  EXPECT_TRUE(map->segments()[1].loaded);
+  EXPECT_FALSE(map->segments()[2].loaded);
+  EXPECT_EQ(map->counters().cloud_evictions, 0u);
+  EXPECT_EQ(map->counters().points_read, 3 * kPointsPerSegment);  // the third was read, then dropped
+  const uint64_t loads = map->counters().cloud_loads;
+
+  // Segment 1 whole: its voxel means, from memory.
+  std::vector<CloudPoint> out;
+  auto st = map->points_near(segment_pose(1).translation(), 5.0, &out);
+  ASSERT_TRUE(st.ok());
+  EXPECT_EQ(map->counters().cloud_loads, loads);
+  ASSERT_EQ(out.size(), expected[1].size());
+  for (const CloudPoint& p : out) {
+    const Eigen::Vector3d q(p.x_m, p.y_m, p.z_m);
+    double nearest = 1e9;
+    for (const Eigen::Vector3d& e : expected[1]) nearest = std::min(nearest, (e - q).norm());
+    EXPECT_LT(nearest, 1e-4);
+  }
+  // Segment 2 needs room: read now, the least recently used preloaded cloud (segment 0) goes.
+  st = map->points_near(segment_pose(2).translation(), 5.0, &out);
+  ASSERT_TRUE(st.ok());
+  EXPECT_EQ(out.size(), expected[2].size());
+  EXPECT_FALSE(map->segments()[0].loaded);
+  EXPECT_LE(map->counters().loaded_points, config.max_loaded_points);
+
+  PriorMapConfig bad = config;
+  bad.cloud_voxel_m = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_EQ(PriorMap::open(tmp.file("store"), bad).status().code(), core::ErrorCode::kInvalidArgument);
+  bad.cloud_voxel_m = -0.05;
+  EXPECT_EQ(PriorMap::open(tmp.file("store"), bad).status().code(), core::ErrorCode::kInvalidArgument);
+}
+
 TEST(PriorMap, GivenAMissingOrDamagedStoreThenTheErrorNamesTheFile) {
   TempDir tmp;
   auto missing = PriorMap::open(tmp.file("store") + "/nope");
@@ -336,7 +421,7 @@ TEST(PriorMap, GivenAMissingOrDamagedStoreThenTheErrorNamesTheFile) {
   // skipped, counted and never read again, and the other segments still answer.
   const std::string cloud1 = tmp.file("store") + "/segments/seg_000001/cloud.bin";
   flip_byte(cloud1, 48 + 100);
-  PriorMapConfig config;
+  PriorMapConfig config = exact_config();
   config.cloud_reach_m = 2.5;
   auto map = PriorMap::open(tmp.file("store"), config);
   ASSERT_TRUE(map.ok()) << map.status().message();
@@ -381,7 +466,7 @@ TEST(PriorMap, GivenRoomForTwoOfThreeCloudsThenTheLeastRecentlyUsedUnneededOneIs
   TempDir tmp;
   const std::vector<SegmentRecord> segments = make_segments();
   write_store(tmp.file("store"), segments);
-  PriorMapConfig config;
+  PriorMapConfig config = exact_config();
   config.cloud_reach_m = 2.5;
   config.max_loaded_points = 2 * kPointsPerSegment + kPointsPerSegment / 2;  // room for two clouds
   auto map = PriorMap::open(tmp.file("store"), config);
@@ -417,7 +502,7 @@ TEST(PriorMap, GivenASegmentLoadedForItsEstimatedBoxButNotNearThenItCanBeEvicted
   write_store(tmp.file("store"), segments);
   // A reach of 28 m: before their clouds are read, segments 0 and 2 (30 m away) seem within 4 m of
   // segment 1's origin (about 1.5 and 2 m: 0 comes first); their clouds show they are not.
-  PriorMapConfig config;
+  PriorMapConfig config = exact_config();
   config.cloud_reach_m = 28.0;
   config.max_loaded_points = 2 * kPointsPerSegment + kPointsPerSegment / 2;  // room for two clouds
   auto map = PriorMap::open(tmp.file("store"), config);
@@ -449,7 +534,7 @@ TEST(PriorMap, GivenMoreKeyframeFeaturesThanTheBoundThenOpenFailsSayingSo) {
   TempDir tmp;
   write_store(tmp.file("store"), make_segments());
   constexpr int kTotal = kSegments * kKeyframesPerSegment * kFeaturesPerKeyframe;  // 300
-  PriorMapConfig config;
+  PriorMapConfig config = exact_config();
   config.max_prior_features = kTotal;
   auto fits = PriorMap::open(tmp.file("store"), config);
   ASSERT_TRUE(fits.ok()) << fits.status().message();

@@ -549,6 +549,56 @@ TEST(Relocalizer, GivenAFineFitNdtCallsDegenerateThenTheOrbRefinementPinsItAndFa
   EXPECT_NE(r3.message.find("ORB refinement: not tried"), std::string::npos) << r3.message;
 }
 
+TEST(Relocalizer, GivenAConvergedFitThenTheOrbPolishMovesThePoseButNeverTheVerdict) {
+  auto prior = PriorMap::open(stores().full);
+  ASSERT_TRUE(prior.ok()) << prior.status().message();
+  const Eigen::Isometry3d T_true = known_T_prior_world();
+  const CurrentRun run = make_current(walk().query_lab, T_true);
+  auto make = [&](bool polish, double max_move_m) {
+    RelocalizerConfig c;
+    c.orb_refine_converged = polish;
+    c.orb_refine_converged_max_move_m = max_move_m;
+    auto r = Relocalizer::create(c, walk().K, kMaxFeatures);
+    EXPECT_TRUE(r.ok()) << r.status().message();
+    return std::move(r).value();
+  };
+  const RelocalizationQuery q = make_query(run);
+
+  Relocalizer ndt_only = make(false, 0.1);
+  const RelocalizationResult r0 = ndt_only.relocalize(q, &prior.value());
+  print_result("converged, no polish", r0);
+  ASSERT_TRUE(r0.localized) << r0.message;
+  EXPECT_FALSE(r0.orb_refined);
+
+  Relocalizer polished = make(true, 0.1);
+  const RelocalizationResult r1 = polished.relocalize(q, &prior.value());
+  print_result("converged, ORB polish", r1);
+  ASSERT_TRUE(r1.localized) << r1.message;
+  ASSERT_TRUE(r1.orb_refined);
+  EXPECT_FALSE(r1.orb_refined_weak);
+  EXPECT_NE(r1.message.find("polished by"), std::string::npos) << r1.message;
+  // The same NDT fit underneath, judged the same. Two relocalizers differ below a millimetre (FLANN
+  // draws its LSH tables at random), so "the same" is within 2 mm and 0.01 of margin.
+  EXPECT_LT(pose_errors(r1.T_prior_world_ndt, r0.T_prior_world).m, 0.002);
+  EXPECT_NEAR(r1.score_margin, r0.score_margin, 0.01);
+  const Errors e = pose_errors(r1.T_prior_world, T_true);
+  const Errors e_ndt = pose_errors(r0.T_prior_world, T_true);
+  std::printf("[ reloc    ]   polished error %.2f cm, %.3f deg; the NDT fit's %.2f cm, %.3f deg\n",
+              100.0 * e.m, e.deg, 100.0 * e_ndt.m, e_ndt.deg);
+  EXPECT_LT(e.m, e_ndt.m);
+  EXPECT_LT(e.deg, 0.3);
+  EXPECT_LE(pose_errors(r1.T_prior_world, r1.T_prior_world_ndt).m, 0.1);  // orb_refine_converged_max_move_m
+
+  // A polish that would move the fit further than allowed (here 1 um) is not taken: NDT's pose stays.
+  Relocalizer tight = make(true, 1e-6);
+  const RelocalizationResult r2 = tight.relocalize(q, &prior.value());
+  ASSERT_TRUE(r2.localized) << r2.message;
+  EXPECT_FALSE(r2.orb_refined);
+  EXPECT_GT(r2.orb_refine_attempts, 0);
+  EXPECT_LT(pose_errors(r2.T_prior_world, r0.T_prior_world).m, 0.002);
+  EXPECT_NE(r2.orb_refine_failure.find("from the NDT fit"), std::string::npos) << r2.orb_refine_failure;
+}
+
 // ---- a second run of the simulator ----
 
 TEST(Relocalizer, GivenTheLabRevisitRunThenItsWorldFrameIsFoundInThePriorsFrame) {

@@ -23,7 +23,8 @@
 // the moved source cloud (better conditioned than the origin when clouds lie far from it); the
 // Hessian it reports is converted to the pivot c = 0 (the target origin).
 //
-// Memory: NdtTarget and NdtAligner allocate in create() only; building a target and aligning never
+// Memory: NdtTarget and NdtAligner allocate in create() only (an aligner holds one target per
+// configured level, ~200 B x max_target_voxels each); building a target and aligning never
 // allocate (the firmware rule of ARCHITECTURE.md), so the mapping task can run them every junction.
 // Threads: with num_threads > 1 the aligner starts num_threads - 1 workers in create(); each pass
 // over the source cuts it into a fixed number of chunks whose partial sums are added in chunk
@@ -152,8 +153,13 @@ class NdtAligner {
   // Aligns source to target from the initial guess, coarse to fine over config.resolutions_m
   // (building the target at each level). Never throws, never returns a non-finite pose; on failure
   // converged = false, failure says why and T_target_source is the last finite estimate.
+  // target_version: 0, the target is built at every level of every call. Otherwise the caller
+  // promises that a view with the same pointer, size, stride and version holds the same points:
+  // a level whose target was last built from it is not built again (the aligner keeps one target
+  // per level). Callers that align many sources or guesses against one cloud (the relocalizer's
+  // hypotheses) number each new cloud.
   NdtResult align(const PointsView& target, const PointsView& source,
-                  const Eigen::Isometry3d& T_target_source_guess);
+                  const Eigen::Isometry3d& T_target_source_guess, uint64_t target_version = 0);
   // One level against a prebuilt target (for callers that reuse a target over many sources).
   NdtResult align_level(const NdtTarget& target, const PointsView& source,
                         const Eigen::Isometry3d& T_target_source_guess);

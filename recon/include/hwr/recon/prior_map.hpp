@@ -18,7 +18,8 @@
 // has indexed the map (Relocalizer::prepare), its LSH vote index over those descriptors, ~100 bytes
 // per feature more: ~190 bytes per prior feature in all (the sim lab's 80 s prior: 158k features,
 // ~30 MB). PriorMapConfig::max_prior_features bounds it: open() refuses a larger prior (kOutOfRange).
-// Clouds: 16 bytes per point, at most max_loaded_points of them (plus the one segment being read).
+// Clouds: 16 bytes per point, at most max_loaded_points of them (plus the one segment being read),
+// thinned when read to one point per cloud_voxel_m voxel (PriorMapConfig).
 // points_near() writes into the caller's vector, which keeps its capacity between calls. Loading a
 // cloud allocates (it reads a file); this class runs off the control loop.
 
@@ -36,8 +37,15 @@
 namespace hwr::recon {
 
 struct PriorMapConfig {
-  // Clouds kept in memory, points in all loaded segments together (16 bytes each).
-  int64_t max_loaded_points = 3'000'000;
+  // Clouds kept in memory, points in all loaded segments together (16 bytes each), counted after
+  // thinning.
+  int64_t max_loaded_points = 4'000'000;
+  // A cloud is thinned when read: one point per voxel of this size (the centroid of the stored
+  // points in it, the colour of the first), in the segment frame. The relocalizer's NDT ends at
+  // 0.25 m voxels and subsampled its target to max_target_points before; the stored 2 cm map is
+  // ~16x denser on surfaces than it needs. Measured (sim outdoor prior, hwr-bench reloc): 0.05 m
+  // keeps ~1/5 of the points. 0 keeps every stored point.
+  double cloud_voxel_m = 0.05;
   // Keyframe features of the whole prior, held for the map's lifetime (~190 bytes each with the
   // relocalizer's vote index, see "Memory" above): 2M ~ 380 MB. open() fails beyond it.
   int64_t max_prior_features = 2'000'000;
@@ -72,13 +80,14 @@ struct PriorSegment {
   Eigen::AlignedBox3d keyframe_box_prior;      // keyframe camera positions
   bool cloud_box_known = false;                // the cloud was read at least once
   Eigen::AlignedBox3d cloud_box_prior;         // its points (valid when cloud_box_known)
-  int64_t points = 0;                          // cloud size (segment.yaml)
-  bool loaded = false;                         // cloud in memory now
+  int64_t points = 0;       // cloud size: segment.yaml's until read, then thinned (cloud_voxel_m)
+  bool loaded = false;      // cloud in memory now
   bool unreadable = false;  // its cloud failed to read once: skipped by points_near from then on
 };
 
 struct PriorMapCounters {
   uint64_t cloud_loads = 0;      // segment clouds read from disk
+  int64_t points_read = 0;       // their stored points, before thinning
   uint64_t cloud_evictions = 0;  // dropped to stay within max_loaded_points
   uint64_t queries = 0;          // points_near calls
   int64_t loaded_points = 0;     // in memory now
@@ -93,6 +102,15 @@ struct PointsNearStats {
   int segments_over_budget = 0;  // near, but their cloud did not fit the budget: not searched
   int segments_unreadable = 0;   // near, but their cloud cannot be read (corrupt, missing): not searched
   int64_t points = 0;            // written to the output
+};
+
+// What preload_clouds() did.
+struct PreloadStats {
+  int segments_loaded = 0;       // read by this call
+  int segments_in_memory = 0;    // afterwards
+  int segments_over_budget = 0;  // left on disk: the next would pass max_loaded_points
+  int segments_unreadable = 0;
+  int64_t points_in_memory = 0;  // afterwards, thinned
 };
 
 class PriorMap {
@@ -114,9 +132,9 @@ class PriorMap {
   // Unique per open() in this process (kept by moves): tells a cache which prior map it indexed.
   uint64_t instance_id() const { return instance_id_; }
 
-  // Writes into `out` (cleared first) every prior point, in the prior frame, within radius_m of
-  // p_prior_m, from the segments whose box comes within radius_m of it; loads those clouds (nearest
-  // segment first) and evicts least-recently-used others beyond max_loaded_points. A near segment
+  // Writes into `out` (cleared first) every prior point (thinned, cloud_voxel_m), in the prior frame, within
+  // radius_m of p_prior_m, from the segments whose box comes within radius_m of it; loads those clouds
+  // (nearest segment first) and evicts least-recently-used others beyond max_loaded_points. A near segment
   // that does not fit the budget even with every other cloud evicted is skipped and counted in
   // the stats (the answer is then partial, never wrong). A near segment whose cloud fails to read
   // (corrupt or missing cloud.bin) is marked unreadable, logged once (a warning naming the file and
@@ -125,6 +143,14 @@ class PriorMap {
   // radius not positive and finite or a non-finite position (kInvalidArgument).
   core::Expected<PointsNearStats> points_near(const Eigen::Vector3d& p_prior_m, double radius_m,
                                               std::vector<CloudPoint>* out);
+
+  // Reads (and thins) every cloud not in memory yet, in segment order, until one does not fit within
+  // max_loaded_points (that one and the rest stay on disk); evicts nothing. For a robot that has a moment
+  // before its first relocalization attempt (RelocalizationWorker runs it at start, beside
+  // Relocalizer::prepare): without GNSS the first attempt's candidates come from anywhere in the map, and
+  // reading their clouds then is most of its time. A cloud that fails to read is marked unreadable (as in
+  // points_near). Returns how many segments are in memory afterwards.
+  PreloadStats preload_clouds();
 
   PriorMap(PriorMap&&) noexcept = default;
   PriorMap& operator=(PriorMap&&) noexcept = default;

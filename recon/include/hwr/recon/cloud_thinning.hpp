@@ -1,0 +1,29 @@
+#pragma once
+// Voxel thinning of a point cloud: one point per occupied cube of side voxel_m, the centroid of the
+// points in it (the colour of its first point in input order). The prior map thins its clouds
+// when it reads them (prior_map.hpp, PriorMapConfig::cloud_voxel_m): the relocalizer's NDT voxels
+// are 0.25-2 m, the stored map's 2 cm.
+//
+// Voxel keys are floor(p / voxel_m) per axis within ±2^20; a point outside that range (beyond
+// ±52 km at 5 cm) is kept as it is. Non-finite points are dropped. The output is ordered by voxel
+// key, so the result does not depend on the input's order (but for the colour). Allocates a
+// scratch array of 16 bytes per point (runs where clouds are read from disk, off the control loop).
+
+#include <vector>
+
+#include "hwr/core/status.hpp"
+#include "hwr/recon/keyframe_cloud.hpp"
+
+namespace hwr::recon {
+
+struct ThinningStats {
+  int64_t points_in = 0;
+  int64_t points_out = 0;
+  int64_t nonfinite_dropped = 0;
+  int64_t out_of_range_kept = 0;
+};
+
+// Thins `cloud` in place. Errors: voxel_m not positive and finite (kInvalidArgument; cloud untouched).
+core::Expected<ThinningStats> thin_cloud(std::vector<CloudPoint>* cloud, double voxel_m);
+
+}  // namespace hwr::recon
