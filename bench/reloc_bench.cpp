@@ -412,7 +412,8 @@ core::Status run_start(const Options& o, Prior* prior, recon::Relocalizer* reloc
       if (o.verbose && r.best_fit_valid && r.orb_refined) {
         // Step d' replaced the NDT fit: how far off was NDT alone?
         const PoseError e = pose_error(r.T_prior_world_ndt * T_world_cam, truth.T_prior_cam_local);
-        const PoseError e_fit = pose_error(r.T_prior_world_best_fit * T_world_cam, truth.T_prior_cam_local);
+        const Eigen::Isometry3d& T_fit = r.localized ? r.T_prior_world : r.T_prior_world_best_fit;
+        const PoseError e_fit = pose_error(T_fit * T_world_cam, truth.T_prior_cam_local);
         std::printf(
             "      ORB-refined fit: error local %.2f cm %.3f deg; the %s NDT fit's %.2f cm %.3f deg\n",
             e_fit.cm, e_fit.deg, r.orb_refined_weak ? "degenerate" : "converged", e.cm, e.deg);

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <utility>
 
 namespace hwr::recon {
@@ -29,12 +30,17 @@ core::Expected<ThinningStats> thin_cloud(std::vector<CloudPoint>* cloud, double 
   if (!(voxel_m > 0) || !std::isfinite(voxel_m)) {
     return core::InvalidArgument("cloud thinning: voxel_m must be positive and finite");
   }
+  if (cloud->size() > std::numeric_limits<uint32_t>::max()) {
+    return core::InvalidArgument("cloud thinning: more than 2^32 - 1 points");
+  }
   ThinningStats stats;
   stats.points_in = static_cast<int64_t>(cloud->size());
   const double inv_voxel = 1.0 / voxel_m;
   std::vector<std::pair<uint64_t, uint32_t>> keyed;
   keyed.reserve(cloud->size());
-  std::vector<CloudPoint> kept_as_is;
+  // (first input index, point): the output follows the input order of each voxel's first point,
+  // so a strided subsample of it keeps the input's (map's) spread, not a regular grid.
+  std::vector<std::pair<uint32_t, CloudPoint>> kept;
   for (size_t i = 0; i < cloud->size(); ++i) {
     const CloudPoint& p = (*cloud)[i];
     if (!std::isfinite(p.x_m) || !std::isfinite(p.y_m) || !std::isfinite(p.z_m)) {
@@ -45,14 +51,12 @@ core::Expected<ThinningStats> thin_cloud(std::vector<CloudPoint>* cloud, double 
     if (voxel_key(p, inv_voxel, &key)) {
       keyed.emplace_back(key, static_cast<uint32_t>(i));
     } else {
-      kept_as_is.push_back(p);
+      kept.emplace_back(static_cast<uint32_t>(i), p);
+      ++stats.out_of_range_kept;
     }
   }
-  // By key, then input index: a voxel's first point in input order gives the colour.
+  // By key, then input index: a voxel's first point in input order comes first (its colour).
   std::sort(keyed.begin(), keyed.end());
-
-  std::vector<CloudPoint> out;
-  out.reserve(keyed.size() / 4 + kept_as_is.size() + 1);
   for (size_t b = 0; b < keyed.size();) {
     size_t e = b;
     double sx = 0, sy = 0, sz = 0;
@@ -67,11 +71,13 @@ core::Expected<ThinningStats> thin_cloud(std::vector<CloudPoint>* cloud, double 
     q.x_m = static_cast<float>(sx / n);
     q.y_m = static_cast<float>(sy / n);
     q.z_m = static_cast<float>(sz / n);
-    out.push_back(q);
+    kept.emplace_back(keyed[b].second, q);
     b = e;
   }
-  stats.out_of_range_kept = static_cast<int64_t>(kept_as_is.size());
-  out.insert(out.end(), kept_as_is.begin(), kept_as_is.end());
+  std::sort(kept.begin(), kept.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+  std::vector<CloudPoint> out;
+  out.reserve(kept.size());
+  for (const auto& k : kept) out.push_back(k.second);
   stats.points_out = static_cast<int64_t>(out.size());
   cloud->swap(out);
   return stats;

@@ -354,6 +354,7 @@ struct NdtAligner::Impl {
   struct BuiltFrom {
     const float* xyz = nullptr;
     int n = -1, stride_floats = 0;
+    double resolution_m = 0;
     uint64_t version = 0;
   };
   std::vector<NdtTarget> targets;
@@ -467,11 +468,10 @@ bool NdtAligner::Impl::run_level(const NdtTarget::Impl& tg, const PointsView& so
 core::Expected<NdtAligner> NdtAligner::create(const NdtConfig& config) {
   std::vector<NdtTarget> targets;
   for (double resolution : config.resolutions_m) {
-    if (resolution == 0.0 && !targets.empty()) break;
+    if (!targets.empty() && (resolution == 0.0 || !config.target_per_level)) break;
     auto target = NdtTarget::create(config);  // checks the config (a list without levels fails here)
     if (!target.ok()) return target.status();
     targets.push_back(std::move(target.value()));
-    if (resolution == 0.0) break;
   }
   return NdtAligner(std::make_unique<Impl>(config, std::move(targets)));
 }
@@ -620,10 +620,12 @@ NdtResult NdtAligner::align(const PointsView& target, const PointsView& source,
   for (size_t l = 0; l < config.resolutions_m.size(); ++l) {
     const double resolution = config.resolutions_m[l];
     if (resolution == 0.0) break;
-    NdtTarget& level_target = impl_->targets[l];
-    Impl::BuiltFrom& from = impl_->built[l];
+    const size_t slot = config.target_per_level ? l : 0;
+    NdtTarget& level_target = impl_->targets[slot];
+    Impl::BuiltFrom& from = impl_->built[slot];
     const bool reuse = target_version != 0 && from.version == target_version && from.xyz == target.xyz &&
-                       from.n == target.n && from.stride_floats == target.stride_floats;
+                       from.n == target.n && from.stride_floats == target.stride_floats &&
+                       from.resolution_m == resolution;
     if (!reuse) {
       from = Impl::BuiltFrom{};
       if (!level_target.build(target, resolution).ok()) {  // capacity: the only error a valid view can give
@@ -633,7 +635,7 @@ NdtResult NdtAligner::align(const PointsView& target, const PointsView& source,
         return result;
       }
       if (target_version != 0)
-        from = Impl::BuiltFrom{target.xyz, target.n, target.stride_floats, target_version};
+        from = Impl::BuiltFrom{target.xyz, target.n, target.stride_floats, resolution, target_version};
     }
     // A coarse level only seeds the next one: its epsilons grow with its voxel side.
     const double epsilon_scale = std::max(1.0, resolution / finest_m);

@@ -143,6 +143,23 @@ void PriorMap::evict(size_t index) {
   ++counters_.cloud_evictions;
 }
 
+void PriorMap::make_room(int64_t extra_points) {
+  while (counters_.loaded_points + extra_points > config_.max_loaded_points) {
+    size_t victim = segments_.size();
+    for (size_t j = 0; j < segments_.size(); ++j) {
+      if (!segments_[j].loaded || needed_[j]) continue;
+      if (victim == segments_.size() || last_used_[j] < last_used_[victim]) victim = j;
+    }
+    if (victim == segments_.size()) return;
+    evict(victim);
+  }
+}
+
+void PriorMap::drop_unbudgeted(size_t index) {
+  evict(index);
+  --counters_.cloud_evictions;  // not a cache eviction: it never was within the budget
+}
+
 core::Status PriorMap::load_cloud(size_t index) {
   PriorSegment& s = segments_[index];
   auto rec = store_.read_segment(s.segment_id);
@@ -195,8 +212,7 @@ PreloadStats PriorMap::preload_clouds() {
     }
     if (counters_.loaded_points > config_.max_loaded_points) {
       // Full: this and the rest stay on disk (a large map is not read through to find small clouds).
-      evict(i);
-      --counters_.cloud_evictions;  // not a cache eviction: it never was in the budget
+      drop_unbudgeted(i);
       for (size_t j = i; j < segments_.size(); ++j) {
         stats.segments_over_budget += (!segments_[j].loaded && !segments_[j].unreadable) ? 1 : 0;
       }
@@ -243,20 +259,18 @@ core::Expected<PointsNearStats> PriorMap::points_near(const Eigen::Vector3d& p_p
       continue;
     }
     if (!s.loaded) {
-      // Make room: evict least-recently-used clouds this query does not need.
-      while (counters_.loaded_points + s.points > config_.max_loaded_points) {
-        size_t victim = segments_.size();
-        for (size_t j = 0; j < segments_.size(); ++j) {
-          if (!segments_[j].loaded || needed_[j]) continue;
-          if (victim == segments_.size() || last_used_[j] < last_used_[victim]) victim = j;
+      // Make room: evict least-recently-used clouds this query does not need. A cloud's size is known
+      // once it was read (thinned); before that it is read first and room is made after (the
+      // "one segment being read" of the header), so that segment.yaml's unthinned count neither
+      // evicts clouds needlessly nor keeps a cloud out that fits thinned.
+      const bool size_known = s.cloud_box_known || config_.cloud_voxel_m <= 0;
+      if (size_known) {
+        make_room(s.points);
+        if (counters_.loaded_points + s.points > config_.max_loaded_points) {
+          ++stats.segments_over_budget;
+          needed_[index] = 0;
+          continue;
         }
-        if (victim == segments_.size()) break;
-        evict(victim);
-      }
-      if (counters_.loaded_points + s.points > config_.max_loaded_points) {
-        ++stats.segments_over_budget;
-        needed_[index] = 0;
-        continue;
       }
       const core::Status st = load_cloud(index);
       if (!st.ok()) {
@@ -268,6 +282,15 @@ core::Expected<PointsNearStats> PriorMap::points_near(const Eigen::Vector3d& p_p
         HWR_LOG_WARN("prior-map", "segment %u: cloud unreadable, skipped from now on: %s", s.segment_id,
                      st.message().c_str());
         continue;
+      }
+      if (!size_known) {
+        make_room(0);
+        if (counters_.loaded_points > config_.max_loaded_points) {
+          drop_unbudgeted(index);
+          ++stats.segments_over_budget;
+          needed_[index] = 0;
+          continue;
+        }
       }
       // The exact box may show the cloud is not near after all: then this query does not need it
       // (it may be evicted to make room for a segment that is near).

@@ -1412,11 +1412,14 @@ RelocalizationResult Relocalizer::relocalize(const RelocalizationQuery& q, Prior
   double coarse_margin =
       best->coarse_score > 0 ? (best->coarse_score - coarse_rival) / best->coarse_score : -1.0;
   const char* margin_over = "all points";
-  if (m.n_structure >= cfg.min_structure_points) {
+  // The rivals' best structure scores per level (kept for the polish below).
+  double best_resolution[2] = {0, 0};
+  double structure_rival[2] = {0, 0};
+  const bool structure_margin = m.n_structure >= cfg.min_structure_points;
+  if (structure_margin) {
     // Over the structure points, at the fine and the coarse finest resolutions, every rival at its
     // own pose (the ground fits them all alike; structure_points.hpp).
     margin_over = "structure points";
-    double best_resolution[2] = {0, 0};
     for (double r : cfg.ndt_fine.resolutions_m) best_resolution[0] = r > 0 ? r : best_resolution[0];
     for (double r : cfg.ndt_coarse.resolutions_m) best_resolution[1] = r > 0 ? r : best_resolution[1];
     double margins[2] = {-1, -1};
@@ -1431,6 +1434,7 @@ RelocalizationResult Relocalizer::relocalize(const RelocalizationQuery& q, Prior
         // A rival whose target could not be built is not known to score lower: fail closed.
         s_rival = std::max(s_rival, std::isfinite(s_r) ? s_r : s_best);
       }
+      structure_rival[level] = s_rival;
       if (std::isfinite(s_best) && s_best > 0) margins[level] = (s_best - s_rival) / s_best;
     }
     fine_margin = margins[0];
@@ -1454,24 +1458,53 @@ RelocalizationResult Relocalizer::relocalize(const RelocalizationQuery& q, Prior
                            coarse_margin, cfg.min_score_margin, res.rivals_evaluated));
   }
   // Accepted. A converged fit is polished now (orb_refine_converged): the verdict above was reached on
-  // NDT's pose, and the polish only replaces the pose when it moved little, the geometry agrees and the
-  // priors still allow it.
-  if (cfg.orb_refine_converged && !best->orb_refined) {
+  // NDT's pose; the polished pose replaces it only when it passes the same pose-dependent tests (the
+  // priors' gates, the ORB seed's max_ndt_correction, the ORB check, the score margin against the
+  // same rivals), moved little and the geometry agrees. The inlier ratio stays NDT's (a move of at
+  // most orb_refine_converged_max_move). Otherwise NDT's pose is returned.
+  if (cfg.orb_refine && cfg.orb_refine_converged && !best->orb_refined && structure_margin) {
     ++res.orb_refine_attempts;
     const Refined o = refine_by_orb(T, false);
-    if (!o.status.ok()) return done(RelocalizationReason::kPriorMapError, o.status.message());
-    if (o.ok && gates_ok(o.T_prior_world)) {
-      ++res.orb_refine_accepted;
-      res.orb_refined = true;
-      res.T_prior_world_ndt = T;
-      res.T_prior_world = o.T_prior_world;
-      res.T_prior_world_best_fit = o.T_prior_world;
-      res.orb_refine_inliers = o.inliers;
-      res.orb_refine_sigma_m = o.sigma_m;
-      res.orb_refine_sigma_rad = o.sigma_rad;
-    } else if (res.orb_refine_failure.empty()) {
-      res.orb_refine_failure = o.ok ? std::string("the polished pose leaves the priors' gates") : o.why;
+    std::string why = o.status.ok() ? o.why : "prior map: " + o.status.message();
+    if (o.status.ok() && o.ok) {
+      const Eigen::Isometry3d& P = o.T_prior_world;
+      int verify_keyframes = 0;
+      const int verified = m.verify(P, q, *prior, m.excluded_keyframes, &verify_keyframes);
+      double margin = std::min(fine_margin, coarse_margin);
+      core::Status st;
+      for (int level = 0; level < 2; ++level) {
+        const double s_p = m.structure_score(prior, P, best_resolution[level], &res.counters, &st);
+        if (!st.ok() || !std::isfinite(s_p) || s_p <= 0) {
+          margin = -1;
+          break;
+        }
+        margin = std::min(margin, (s_p - structure_rival[level]) / s_p);
+      }
+      const PoseDistance seed = pose_distance(best->T_seed, P, m.centroid_world);
+      if (!gates_ok(P)) {
+        why = "the polished pose leaves the priors' gates";
+      } else if (best->from_orb &&
+                 (seed.m > cfg.max_ndt_correction_m || seed.rad > cfg.max_ndt_correction_rad)) {
+        why =
+            format("the polished pose is %.2f m / %.1f deg from the ORB seed", seed.m, seed.rad * kRadToDeg);
+      } else if (cfg.require_orb_verification &&
+                 (verify_keyframes == 0 || verified < cfg.min_verified_matches)) {
+        why = format("%.0f ORB matches of %.0f nearby prior keyframes agree with the polished pose", verified,
+                     verify_keyframes);
+      } else if (!(margin >= cfg.min_score_margin)) {
+        why = format("the polished pose's score margin is %.2f", margin);
+      } else {
+        ++res.orb_refine_accepted;
+        res.orb_refined = true;
+        res.T_prior_world_ndt = T;
+        res.T_prior_world = P;
+        res.orb_refine_inliers = o.inliers;
+        res.orb_refine_sigma_m = o.sigma_m;
+        res.orb_refine_sigma_rad = o.sigma_rad;
+        why.clear();
+      }
     }
+    if (!why.empty() && res.orb_refine_failure.empty()) res.orb_refine_failure = "polish: " + why;
   }
   return done(
       RelocalizationReason::kLocalized,

@@ -1,7 +1,8 @@
 // Voxel thinning (cloud_thinning.hpp). Oracles: each output point is the mean, computed here in
 // double, of the input points whose floor(p / voxel) key it shares, with the colour of the first of
 // them; one output per occupied voxel; non-finite points dropped; points beyond the key range kept
-// as they are; the positions do not depend on the input's order; a bad voxel size changes nothing.
+// as they are; the positions do not depend on the input's order, and the output follows the order of
+// each voxel's first point; a bad voxel size changes nothing.
 
 #include <algorithm>
 #include <array>
@@ -9,6 +10,7 @@
 #include <limits>
 #include <map>
 #include <random>
+#include <tuple>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -90,21 +92,35 @@ TEST(CloudThinning, GivenADenseNoisySurfaceThenOnePointPerVoxelAtTheMeanOfItsPoi
   }
 }
 
-TEST(CloudThinning, GivenAShuffledInputThenTheSamePositionsInTheSameOrder) {
+TEST(CloudThinning, GivenAShuffledInputThenTheSamePositionsInTheInputsOrder) {
   std::mt19937 rng(11);
   std::uniform_real_distribution<double> u(-3.0, 3.0);
   std::vector<CloudPoint> a;
-  for (int i = 0; i < 5000; ++i) a.push_back(point(u(rng), u(rng), 0.1 * u(rng)));
+  for (int i = 0; i < 5000; ++i)
+    a.push_back(point(u(rng), u(rng), 0.1 * u(rng), static_cast<uint8_t>(i & 0xff)));
   std::vector<CloudPoint> b = a;
   std::shuffle(b.begin(), b.end(), rng);
+  const std::vector<CloudPoint> b_in = b;
   ASSERT_TRUE(thin_cloud(&a, 0.2).ok());
   ASSERT_TRUE(thin_cloud(&b, 0.2).ok());
   ASSERT_EQ(a.size(), b.size());
-  for (size_t i = 0; i < a.size(); ++i) {
-    // Float sums in another order differ in the last bits.
-    EXPECT_NEAR(a[i].x_m, b[i].x_m, 1e-5);
-    EXPECT_NEAR(a[i].y_m, b[i].y_m, 1e-5);
-    EXPECT_NEAR(a[i].z_m, b[i].z_m, 1e-5);
+  // The same voxel means, whatever the order (float sums in another order differ in the last bits).
+  auto by_position = [](const CloudPoint& p, const CloudPoint& q) {
+    return std::make_tuple(p.x_m, p.y_m, p.z_m) < std::make_tuple(q.x_m, q.y_m, q.z_m);
+  };
+  std::vector<CloudPoint> sa = a, sb = b;
+  std::sort(sa.begin(), sa.end(), by_position);
+  std::sort(sb.begin(), sb.end(), by_position);
+  for (size_t i = 0; i < sa.size(); ++i) {
+    EXPECT_NEAR(sa[i].x_m, sb[i].x_m, 1e-5);
+    EXPECT_NEAR(sa[i].y_m, sb[i].y_m, 1e-5);
+    EXPECT_NEAR(sa[i].z_m, sb[i].z_m, 1e-5);
+  }
+  // In b, the voxels come in the order of their first point in b's input.
+  std::map<Key, size_t> first_seen;
+  for (size_t i = 0; i < b_in.size(); ++i) first_seen.emplace(key_of(b_in[i], 0.2), i);
+  for (size_t i = 1; i < b.size(); ++i) {
+    EXPECT_LT(first_seen.at(key_of(b[i - 1], 0.2)), first_seen.at(key_of(b[i], 0.2)));
   }
 }
 
@@ -128,7 +144,8 @@ TEST(CloudThinning, GivenNonFiniteFarOrNegativeCoordinatesThenDroppedKeptOrBinne
   EXPECT_EQ(stats->nonfinite_dropped, 2);
   EXPECT_EQ(stats->out_of_range_kept, 1);
   ASSERT_EQ(cloud.size(), 3u);
-  // Ordered by key: (-1, -1, -1) before (0, 0, 0); the kept far point last.
+  // In the order of each voxel's first point: (-1, -1, -1) (input 0), (0, 0, 0) (input 1), the far
+  // point (input 3).
   EXPECT_EQ(cloud[0].r, 1);
   EXPECT_NEAR(cloud[0].x_m, -0.05, 1e-6);
   EXPECT_NEAR(cloud[0].y_m, -0.015, 1e-6);

@@ -390,12 +390,14 @@ TEST(Ndt, GivenFourThreadsThenTheResultEqualsOneThread) {
   EXPECT_NEAR(a.score, b.score, 1e-6 * a.score);
 }
 
-TEST(Ndt, GivenATargetVersionThenTheTargetIsReusedUntilTheVersionOrViewChanges) {
+TEST(Ndt, GivenATargetVersionThenTheTargetIsReusedUntilTheVersionOrBufferChanges) {
   // Two guesses against one target with a version: the same results as building every time.
   const Pair p = room_pair(0.1, pose({0.3, -0.2, 0.05}, {0.02, -0.01, 5 * kDeg}));
   Cloud target = p.target;  // its buffer is refilled below
   NdtAligner fresh = make_aligner();
-  NdtAligner cached = make_aligner();
+  NdtConfig per_level;
+  per_level.target_per_level = true;
+  NdtAligner cached = make_aligner(per_level);
   const Eigen::Isometry3d guesses[2] = {Eigen::Isometry3d::Identity(),
                                         pose({0.1, 0.1, 0}, {0, 0, -3 * kDeg})};
   for (const Eigen::Isometry3d& g : guesses) {
@@ -418,10 +420,18 @@ TEST(Ndt, GivenATargetVersionThenTheTargetIsReusedUntilTheVersionOrViewChanges) 
   const NdtResult stale = cached.align(target.view(), p.source.view(), p.T_true, 7);
   ASSERT_TRUE(stale.converged);
   EXPECT_LT(translation_error_m(stale.T_target_source, p.T_true), 1e-3);
+  // Version 0 builds every time: the aligner that built from the old contents follows the move.
+  const NdtResult unversioned = fresh.align(target.view(), p.source.view(), p.T_true);
+  ASSERT_TRUE(unversioned.converged);
+  EXPECT_LT(translation_error_m(unversioned.T_target_source, shift * p.T_true), 1e-3);
   // A new version builds again: the pose follows the move.
   const NdtResult moved = cached.align(target.view(), p.source.view(), p.T_true, 8);
   ASSERT_TRUE(moved.converged);
   EXPECT_LT(translation_error_m(moved.T_target_source, shift * p.T_true), 1e-3);
+  // The same version from another buffer (the original room) builds again: the pose follows it.
+  const NdtResult other = cached.align(p.target.view(), p.source.view(), shift * p.T_true, 8);
+  ASSERT_TRUE(other.converged);
+  EXPECT_LT(translation_error_m(other.T_target_source, p.T_true), 1e-3);
 }
 
 TEST(Ndt, GivenACreatedAlignerThenAligningAndBuildingAllocateNothing) {

@@ -401,6 +401,31 @@ TEST(PriorMap, GivenAThinningVoxelThenEachCloudHoldsItsVoxelMeansAndPreloadFills
   EXPECT_FALSE(map->segments()[0].loaded);
   EXPECT_LE(map->counters().loaded_points, config.max_loaded_points);
 
+  // Without the preload, a cloud never read is read and thinned before the budget judges it: the
+  // stored 2000 points would not fit a budget of the thinned count, the thinned cloud does.
+  PriorMapConfig tight = config;
+  tight.max_loaded_points = static_cast<int64_t>(expected[1].size());
+  ASSERT_LT(tight.max_loaded_points, kPointsPerSegment);
+  auto cold = PriorMap::open(tmp.file("store"), tight);
+  ASSERT_TRUE(cold.ok());
+  st = cold->points_near(segment_pose(1).translation(), 5.0, &out);
+  ASSERT_TRUE(st.ok());
+  EXPECT_EQ(st->segments_used, 1);
+  EXPECT_EQ(st->segments_over_budget, 0);
+  EXPECT_EQ(out.size(), expected[1].size());
+  // Then segment 0 needs the room: segment 1 goes (least recently used, not needed).
+  st = cold->points_near(segment_pose(0).translation(), 5.0, &out);
+  ASSERT_TRUE(st.ok());
+  if (expected[0].size() <= expected[1].size()) {
+    EXPECT_EQ(st->segments_used, 1);
+    EXPECT_EQ(out.size(), expected[0].size());
+    EXPECT_FALSE(cold->segments()[1].loaded);
+  } else {
+    EXPECT_EQ(st->segments_over_budget, 1);  // larger thinned than the budget: read, then dropped
+    EXPECT_TRUE(out.empty());
+  }
+  EXPECT_LE(cold->counters().loaded_points, tight.max_loaded_points);
+
   PriorMapConfig bad = config;
   bad.cloud_voxel_m = std::numeric_limits<double>::quiet_NaN();
   EXPECT_EQ(PriorMap::open(tmp.file("store"), bad).status().code(), core::ErrorCode::kInvalidArgument);

@@ -515,6 +515,7 @@ TEST(Relocalizer, GivenAFineFitNdtCallsDegenerateThenTheOrbRefinementPinsItAndFa
   print_result("degenerate, ORB refinement", r1);
   ASSERT_TRUE(r1.localized) << r1.message;
   EXPECT_TRUE(r1.orb_refined);
+  EXPECT_TRUE(r1.orb_refined_weak);
   EXPECT_GE(r1.orb_refine_inliers, RelocalizerConfig{}.orb_refine_min_inliers);
   EXPECT_GT(r1.orb_refine_sigma_m, 0.0);
   EXPECT_LE(r1.orb_refine_sigma_m, 0.01);
@@ -581,6 +582,7 @@ TEST(Relocalizer, GivenAConvergedFitThenTheOrbPolishMovesThePoseButNeverTheVerdi
   // draws its LSH tables at random), so "the same" is within 2 mm and 0.01 of margin.
   EXPECT_LT(pose_errors(r1.T_prior_world_ndt, r0.T_prior_world).m, 0.002);
   EXPECT_NEAR(r1.score_margin, r0.score_margin, 0.01);
+  EXPECT_EQ(r1.T_prior_world_best_fit.matrix(), r1.T_prior_world_ndt.matrix());  // the pose judged
   const Errors e = pose_errors(r1.T_prior_world, T_true);
   const Errors e_ndt = pose_errors(r0.T_prior_world, T_true);
   std::printf("[ reloc    ]   polished error %.2f cm, %.3f deg; the NDT fit's %.2f cm, %.3f deg\n",
@@ -596,7 +598,18 @@ TEST(Relocalizer, GivenAConvergedFitThenTheOrbPolishMovesThePoseButNeverTheVerdi
   EXPECT_FALSE(r2.orb_refined);
   EXPECT_GT(r2.orb_refine_attempts, 0);
   EXPECT_LT(pose_errors(r2.T_prior_world, r0.T_prior_world).m, 0.002);
-  EXPECT_NE(r2.orb_refine_failure.find("from the NDT fit"), std::string::npos) << r2.orb_refine_failure;
+  EXPECT_NE(r2.orb_refine_failure.find("polish: the ORB fit is"), std::string::npos) << r2.orb_refine_failure;
+  EXPECT_EQ(r2.orb_refine_accepted, 0);
+
+  // Without ORB refinement at all (orb_refine off), no polish either.
+  RelocalizerConfig off;
+  off.orb_refine = false;
+  auto none = Relocalizer::create(off, walk().K, kMaxFeatures);
+  ASSERT_TRUE(none.ok());
+  const RelocalizationResult r3 = none->relocalize(q, &prior.value());
+  ASSERT_TRUE(r3.localized) << r3.message;
+  EXPECT_FALSE(r3.orb_refined);
+  EXPECT_EQ(r3.orb_refine_attempts, 0);
 }
 
 // ---- a second run of the simulator ----

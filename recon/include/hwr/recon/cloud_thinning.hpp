@@ -5,9 +5,10 @@
 // are 0.25-2 m, the stored map's 2 cm.
 //
 // Voxel keys are floor(p / voxel_m) per axis within ±2^20; a point outside that range (beyond
-// ±52 km at 5 cm) is kept as it is. Non-finite points are dropped. The output is ordered by voxel
-// key, so the result does not depend on the input's order (but for the colour). Allocates a
-// scratch array of 16 bytes per point (runs where clouds are read from disk, off the control loop).
+// ±52 km at 5 cm) is kept as it is. Non-finite points are dropped. The output follows the input
+// order of each voxel's first point (a strided subsample keeps the map's spread rather than a
+// regular grid); the positions do not depend on the input's order. Allocates scratch arrays of
+// ~16 + 24 bytes per point (runs where clouds are read from disk, off the control loop).
 
 #include <vector>
 

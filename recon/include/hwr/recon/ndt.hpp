@@ -23,10 +23,10 @@
 // the moved source cloud (better conditioned than the origin when clouds lie far from it); the
 // Hessian it reports is converted to the pivot c = 0 (the target origin).
 //
-// Memory: NdtTarget and NdtAligner allocate in create() only (an aligner holds one target per
-// configured level, ~200 B x max_target_voxels each); building a target and aligning never
-// allocate (the firmware rule of ARCHITECTURE.md), so the mapping task can run them every junction.
-// Threads: with num_threads > 1 the aligner starts num_threads - 1 workers in create(); each pass
+// Memory: NdtTarget and NdtAligner allocate in create() only (an aligner holds one target, or one
+// per configured level with target_per_level, ~200 B x max_target_voxels each); building a target and
+// aligning never allocate (the firmware rule of ARCHITECTURE.md), so the mapping task can run them every
+// junction. Threads: with num_threads > 1 the aligner starts num_threads - 1 workers in create(); each pass
 // over the source cuts it into a fixed number of chunks whose partial sums are added in chunk
 // order, so the result does not depend on the thread count (bit for bit).
 
@@ -75,6 +75,10 @@ struct NdtConfig {
   int max_target_points = 2'000'000;  // largest target cloud accepted (points given, finite or not)
   int max_source_points = 500'000;    // largest source cloud accepted
   int max_target_voxels = 262'144;    // occupied voxels one target level may hold (~200 B each)
+  // The aligner keeps one target per level (true) or one for all (false: rebuilt at every level).
+  // Per level, align()'s target_version can skip every rebuild for a caller that aligns many
+  // sources or guesses against one cloud, at levels x the memory.
+  bool target_per_level = false;
   // Degeneracy test at the end of the finest level: the Hessian, its rotation block scaled by the
   // source cloud's RMS radius about the pivot (so both blocks are in m^-2), is degenerate when its
   // smallest eigenvalue is below this fraction of its largest. Measured: a single plane 0.001 (only
@@ -155,8 +159,9 @@ class NdtAligner {
   // converged = false, failure says why and T_target_source is the last finite estimate.
   // target_version: 0, the target is built at every level of every call. Otherwise the caller
   // promises that a view with the same pointer, size, stride and version holds the same points:
-  // a level whose target was last built from it is not built again (the aligner keeps one target
-  // per level). Callers that align many sources or guesses against one cloud (the relocalizer's
+  // a level whose target was last built from it at that resolution is not built again (with
+  // target_per_level every level keeps its own; with one shared target only a single-level config
+  // gains). Callers that align many sources or guesses against one cloud (the relocalizer's
   // hypotheses) number each new cloud.
   NdtResult align(const PointsView& target, const PointsView& source,
                   const Eigen::Isometry3d& T_target_source_guess, uint64_t target_version = 0);

@@ -18,8 +18,9 @@
 // has indexed the map (Relocalizer::prepare), its LSH vote index over those descriptors, ~100 bytes
 // per feature more: ~190 bytes per prior feature in all (the sim lab's 80 s prior: 158k features,
 // ~30 MB). PriorMapConfig::max_prior_features bounds it: open() refuses a larger prior (kOutOfRange).
-// Clouds: 16 bytes per point, at most max_loaded_points of them (plus the one segment being read),
-// thinned when read to one point per cloud_voxel_m voxel (PriorMapConfig).
+// Clouds: 16 bytes per point, at most max_loaded_points of them, thinned when read to one point per
+// cloud_voxel_m voxel (PriorMapConfig), plus the one segment being read: its stored cloud, the
+// thinning's 16 bytes per stored point of scratch and its output at once.
 // points_near() writes into the caller's vector, which keeps its capacity between calls. Loading a
 // cloud allocates (it reads a file); this class runs off the control loop.
 
@@ -42,9 +43,9 @@ struct PriorMapConfig {
   int64_t max_loaded_points = 4'000'000;
   // A cloud is thinned when read: one point per voxel of this size (the centroid of the stored
   // points in it, the colour of the first), in the segment frame. The relocalizer's NDT ends at
-  // 0.25 m voxels and subsampled its target to max_target_points before; the stored 2 cm map is
-  // ~16x denser on surfaces than it needs. Measured (sim outdoor prior, hwr-bench reloc): 0.05 m
-  // keeps ~1/5 of the points. 0 keeps every stored point.
+  // 0.25 m voxels; the stored map's voxels are 2 cm. Measured (hwr-bench reloc's preload): 0.05 m
+  // keeps 18 % of the outdoor prior's points (19.8M -> 3.59M), 16 % of the lab's (8.1M -> 1.33M).
+  // 0 keeps every stored point.
   double cloud_voxel_m = 0.05;
   // Keyframe features of the whole prior, held for the map's lifetime (~190 bytes each with the
   // relocalizer's vote index, see "Memory" above): 2M ~ 380 MB. open() fails beyond it.
@@ -135,8 +136,9 @@ class PriorMap {
   // Writes into `out` (cleared first) every prior point (thinned, cloud_voxel_m), in the prior frame, within
   // radius_m of p_prior_m, from the segments whose box comes within radius_m of it; loads those clouds
   // (nearest segment first) and evicts least-recently-used others beyond max_loaded_points. A near segment
-  // that does not fit the budget even with every other cloud evicted is skipped and counted in
-  // the stats (the answer is then partial, never wrong). A near segment whose cloud fails to read
+  // that does not fit the budget even with every cloud this query does not need evicted is skipped
+  // and counted in the stats (the answer is then partial, never wrong); a cloud never read is read
+  // (and thinned) before that is judged. A near segment whose cloud fails to read
   // (corrupt or missing cloud.bin) is marked unreadable, logged once (a warning naming the file and
   // the store's error), counted (counters().unreadable_segments) and skipped by this and every later
   // query (stats.segments_unreadable): the answer is then partial, from the other segments. Errors:
@@ -161,6 +163,11 @@ class PriorMap {
   double box_distance_m(const PriorSegment& s, const Eigen::Vector3d& p) const;
   core::Status load_cloud(size_t index);
   void evict(size_t index);
+  // Evicts least-recently-used loaded clouds that the current query does not need (needed_) until
+  // extra_points more fit within max_loaded_points, or none is left to evict.
+  void make_room(int64_t extra_points);
+  // Drops a cloud just read that does not fit (not counted as a cache eviction).
+  void drop_unbudgeted(size_t index);
 
   MapStore store_;
   PriorMapConfig config_;

@@ -48,7 +48,8 @@
 //     step e accepts is then polished the same way (orb_refine_converged; a move of at most
 //     10 cm / 1 deg, within the priors' gates): the ORB fit over the nearby keyframes measures the
 //     pose against the map where the camera is, which the NDT fit over the whole local map can miss
-//     by a few tenths of a degree (sim lab: 3-4.5 cm at the camera). The verdict is NDT's.
+//     by a few tenths of a degree (sim lab: 3-4.5 cm at the camera). The verdict is NDT's; the
+//     polished pose is returned only when it passes step e's pose-dependent tests too.
 //  e. Acceptance, so that a pose is returned only when it is unambiguous (0 false relocalizations
 //     is an acceptance goal of the issue): the fine NDT converged (not degenerate, or degenerate and
 //     ORB-refined, step d'), its inlier ratio
@@ -186,6 +187,7 @@ struct RelocalizerConfig {
     // (the ball is the local map's extent + target_margin_m + 1 m) at a quarter of the default's
     // memory (the aligner keeps one target per level).
     c.max_target_voxels = 65'536;
+    c.target_per_level = true;  // every hypothesis near one gather reuses its targets
     return c;
   }();
   NdtConfig ndt_fine = [] {
@@ -201,6 +203,7 @@ struct RelocalizerConfig {
     c.degenerate_eigenvalue_ratio = 0.0125;
     c.max_source_points = 20'000;
     c.max_target_points = 2'000'000;
+    c.target_per_level = true;
     return c;
   }();
   // d'. ORB refinement of a fine fit that NDT leaves weak (failure kDegenerate: outdoors the
@@ -235,11 +238,13 @@ struct RelocalizerConfig {
   double orb_refine_max_sigma_m = 0.01;
   double orb_refine_max_sigma_rad = 0.2 * 3.14159265358979323846 / 180.0;
   double orb_refine_max_score_loss = 0.1;
-  // The same refinement of the converged fine fit step e accepted, with the same gates but a tighter
-  // move, and the priors' gates: it only polishes the pose towards the nearby prior keyframes, after
-  // the verdict, so it changes the pose, never whether it is accepted. Measured (hwr-bench reloc
-  // --scenes lab --starts 50 --seed 1, --orb-refine weak vs all): lab 92 % -> 100 % within
-  // 3 cm / 0.3 deg, error (b) max 4.5 cm / 0.43 deg -> 0.47 cm / 0.08 deg.
+  // The same refinement of the converged fine fit step e accepted (only with orb_refine and
+  // min_structure_points), with the same gates but a tighter move; the polished pose must pass step
+  // e's pose-dependent tests again (priors' gates, the ORB seed's max_ndt_correction, the ORB check,
+  // the score margin against the same rivals), else NDT's pose is returned. It changes the pose,
+  // never whether it is accepted. Measured (hwr-bench reloc --scenes lab --starts 50 --seed 1,
+  // --orb-refine weak vs all): lab 90 % -> 100 % within 3 cm / 0.3 deg, error (b) max
+  // 4.4 cm / 0.42 deg -> 0.42 cm / 0.08 deg.
   bool orb_refine_converged = true;
   double orb_refine_converged_max_move_m = 0.1;
   double orb_refine_converged_max_move_rad = 1.0 * 3.14159265358979323846 / 180.0;
@@ -321,7 +326,8 @@ struct RelocalizationResult {
   bool localized = false;
   Eigen::Isometry3d T_prior_world = Eigen::Isometry3d::Identity();  // valid when localized
   // The best fit that step e judged, also when it was rejected (for diagnosis and benches; never a
-  // pose to use): valid when best_fit_valid.
+  // pose to use): valid when best_fit_valid. For a polished fit (orb_refine_converged) the NDT pose;
+  // T_prior_world is then the polished one.
   Eigen::Isometry3d T_prior_world_best_fit = Eigen::Isometry3d::Identity();
   bool best_fit_valid = false;
   RelocalizationReason reason = RelocalizationReason::kNdtFailed;
