@@ -222,7 +222,7 @@ struct RelocalizerConfig {
   // direction NDT's cost is flat; a pose that contradicts the geometry scores less). Only the RANSAC
   // inliers go into the pose-only fit. Step e then judges the refined fit as any other, but for its
   // ORB seed (see max_ndt_correction) and its ORB verification, which uses keyframes the refinement
-  // also used (the 150-inlier fit stands in for it). Only tried with min_structure_points structure
+  // also used (the 200-inlier fit stands in for it). Only tried with min_structure_points structure
   // points: texture alone can repeat (the sim's outdoor ground pattern gave consistent ORB fits 4.09 m
   // off; on a ground-only local map one was accepted).
   bool orb_refine = true;
@@ -233,8 +233,10 @@ struct RelocalizerConfig {
   double orb_refine_max_move_rad = 5.0 * 3.14159265358979323846 / 180.0;
   // A place that recurs elsewhere explains only part of the keyframe: 50 starts outdoors, refined
   // fits 12.5 m off (a place of the prior 12.3 m away matching in geometry and texture) had 47-110
-  // inliers at sigma 0.34-0.58 cm, right ones 177-424 at 0.13-0.26 cm.
-  int orb_refine_min_inliers = 150;
+  // inliers at sigma 0.34-0.58 cm, right ones 177-424 at 0.13-0.26 cm. With the local map cropped to
+  // 8 m about the camera (as RelocalizationWorker sends it) one such fit had 183 inliers (sigma
+  // 0.28 cm, accepted 12.26 m off); the right ones of that run had 156 (one start), then 204-4xx.
+  int orb_refine_min_inliers = 200;
   double orb_refine_max_sigma_m = 0.01;
   double orb_refine_max_sigma_rad = 0.2 * 3.14159265358979323846 / 180.0;
   double orb_refine_max_score_loss = 0.1;
