@@ -155,6 +155,15 @@ void PriorMap::make_room(int64_t extra_points) {
   }
 }
 
+void PriorMap::mark_unreadable(size_t index, const core::Status& why) {
+  // One damaged cloud must not stop every query over it: skip it from now on, say so once.
+  PriorSegment& s = segments_[index];
+  s.unreadable = true;
+  ++counters_.unreadable_segments;
+  HWR_LOG_WARN("prior-map", "segment %u: cloud unreadable, skipped from now on: %s", s.segment_id,
+               why.message().c_str());
+}
+
 void PriorMap::drop_unbudgeted(size_t index) {
   evict(index);
   --counters_.cloud_evictions;  // not a cache eviction: it never was within the budget
@@ -203,11 +212,8 @@ PreloadStats PriorMap::preload_clouds() {
     // s.points is segment.yaml's count until read: thinned, the cloud is smaller, so try it.
     const core::Status st = load_cloud(i);
     if (!st.ok()) {
-      s.unreadable = true;
-      ++counters_.unreadable_segments;
+      mark_unreadable(i, st);
       ++stats.segments_unreadable;
-      HWR_LOG_WARN("prior-map", "segment %u: cloud unreadable, skipped from now on: %s", s.segment_id,
-                   st.message().c_str());
       continue;
     }
     if (counters_.loaded_points > config_.max_loaded_points) {
@@ -274,13 +280,9 @@ core::Expected<PointsNearStats> PriorMap::points_near(const Eigen::Vector3d& p_p
       }
       const core::Status st = load_cloud(index);
       if (!st.ok()) {
-        // One damaged cloud must not stop every query over it: skip it from now on, say so once.
-        s.unreadable = true;
-        ++counters_.unreadable_segments;
+        mark_unreadable(index, st);
         ++stats.segments_unreadable;
         needed_[index] = 0;
-        HWR_LOG_WARN("prior-map", "segment %u: cloud unreadable, skipped from now on: %s", s.segment_id,
-                     st.message().c_str());
         continue;
       }
       if (!size_known) {

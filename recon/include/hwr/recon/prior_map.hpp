@@ -166,6 +166,8 @@ class PriorMap {
   // Evicts least-recently-used loaded clouds that the current query does not need (needed_) until
   // extra_points more fit within max_loaded_points, or none is left to evict.
   void make_room(int64_t extra_points);
+  // A cloud that failed to read: skipped by every later query, logged once.
+  void mark_unreadable(size_t index, const core::Status& why);
   // Drops a cloud just read that does not fit (not counted as a cache eviction).
   void drop_unbudgeted(size_t index);
 
