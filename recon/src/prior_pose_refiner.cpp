@@ -204,7 +204,7 @@ core::Expected<PriorPoseRefinement> PriorPoseRefiner::refine(const PriorView* vi
   // The information handed on is the data's whole matrix, the frozen directions included (there it
   // backs the guess it kept). Restricted to the moved directions (cleaner: the data was not used in
   // the frozen ones), the next keyframes' weak data moved those directions and the updater test's
-  // last camera ended 6.9 mm / 0.29 deg off instead of 1.7 mm x / 0.11 deg
+  // last camera ended 6.9 mm / 0.29 deg off instead of 1.7 mm / 0.11 deg
   // (PriorMapUpdater.GivenARelocalizationSizedPoseError..., 2026-11-25).
   out.result = PoseRefinement::kConverged;
   out.T_prior_cam = T;
