@@ -24,7 +24,9 @@
 //   hwr-bench reloc [--scenes lab,outdoor] [--starts 50] [--quick] [--seed 1] [--prior-cache DIR]
 //                   [--robot PATH] [--false-starts 20] [--max-attempts 8] [--first-motion-m 1]
 //                   [--attempt-step-m 1] [--max-motion-m 8] [--keyframe-step 12] [--verbose]
-//                   [--sets neither,imu,gnss,both] [--orb-refine all|weak|off]
+//                   [--sets neither,imu,gnss,both] [--orb-refine all|weak|off] [--start-frames F,F,...]
+//  --start-frames: these revisit frames instead of --starts random ones, in every scene (to rerun
+//    the starts a verbose log names, e.g. "start f4678"); frames past the last usable start are refused.
 
 #include "bench_command.hpp"
 
@@ -65,6 +67,7 @@ struct Options {
   std::vector<std::string> scenes = {"lab", "outdoor"};
   int starts = 50;
   int false_starts = 20;
+  std::vector<size_t> start_frames;  // --start-frames: instead of random starts
   uint64_t seed = 1;
   std::string prior_cache = "/tmp/hwr-bench-reloc-priors";
   std::string robot;
@@ -406,11 +409,11 @@ core::Status run_start(const Options& o, Prior* prior, recon::Relocalizer* reloc
                     r.message.c_str());
         const recon::RelocalizationCounters& n = r.counters;
         std::printf(
-            "      stages: appearance %.3f s (index %.3f), geometry %.3f s, NDT %.3f s; %d candidates, %d "
-            "ranked, "
-            "%d RANSAC hypotheses, %d seeds, %d NDT runs (%d from rival seeds), target <= %lld points\n",
+            "      stages: appearance %.3f s (index %.3f), geometry %.3f s, NDT %.3f s; %d candidates, "
+            "%d ranked, %d RANSAC hypotheses, %d seeds, %d NDT runs (%d from rival seeds), "
+            "%d ORB rival keyframes (%d rivals), target <= %lld points\n",
             r.appearance_s, r.index_s, r.geometry_s, r.ndt_s, n.candidates, n.appearance_ranked,
-            n.ransac_hypotheses, n.fallback_seeds, n.ndt_runs, n.rival_seeds,
+            n.ransac_hypotheses, n.fallback_seeds, n.ndt_runs, n.rival_seeds, n.orb_rival_tests, n.orb_rivals,
             static_cast<long long>(n.target_points));
       }
       if (o.verbose && !r.localized && r.best_fit_valid) {
@@ -463,11 +466,16 @@ core::Status run_start(const Options& o, Prior* prior, recon::Relocalizer* reloc
   return core::Status::Ok();
 }
 
-std::vector<size_t> draw_starts(const RelocSimRun& run, int n, double need_m, std::mt19937_64* rng) {
+// The last frame from which need_m of path remain.
+size_t last_start(const RelocSimRun& run, double need_m) {
   size_t last = 0;
   const double total = run.path_at_frame_m(run.frames() - 1);
   while (last + 1 < run.frames() && run.path_at_frame_m(last + 1) <= total - need_m) ++last;
-  std::uniform_int_distribution<size_t> pick(0, last);
+  return last;
+}
+
+std::vector<size_t> draw_starts(const RelocSimRun& run, int n, double need_m, std::mt19937_64* rng) {
+  std::uniform_int_distribution<size_t> pick(0, last_start(run, need_m));
   std::vector<size_t> out;
   for (int i = 0; i < n; ++i) out.push_back(pick(*rng));
   return out;
@@ -534,6 +542,19 @@ int run_reloc(int argc, char** argv) {
         std::fprintf(stderr, "reloc: --orb-refine takes all, weak or off\n");
         return 2;
       }
+    } else if (a == "--start-frames") {
+      std::stringstream ss(value("--start-frames"));
+      for (std::string f; std::getline(ss, f, ',');) {
+        if (!f.empty() && f[0] == 'f') f.erase(0, 1);
+        char* end = nullptr;
+        const unsigned long long v = std::strtoull(f.c_str(), &end, 10);
+        if (f.empty() || end == nullptr || *end != '\0') {
+          std::fprintf(stderr, "reloc: --start-frames takes frame numbers (f4678 or 4678), got '%s'\n",
+                       f.c_str());
+          return 2;
+        }
+        o.start_frames.push_back(static_cast<size_t>(v));
+      }
     } else if (a == "--sets") {
       o.sets.clear();
       std::stringstream ss(value("--sets"));
@@ -549,7 +570,8 @@ int run_reloc(int argc, char** argv) {
                    "usage: hwr-bench reloc [--scenes lab,outdoor] [--starts N] [--quick] [--seed S]\n"
                    "       [--prior-cache DIR] [--robot PATH] [--false-starts N] [--max-attempts N]\n"
                    "       [--first-motion-m M] [--attempt-step-m M] [--max-motion-m M] [--keyframe-step N] "
-                   "[--verbose]\n       [--sets neither,imu,gnss,both] [--orb-refine all|weak|off]\n");
+                   "[--verbose]\n       [--sets neither,imu,gnss,both] [--orb-refine all|weak|off] "
+                   "[--start-frames F,F,...]\n");
       return a == "--help" || a == "-h" ? 0 : 2;
     }
   }
@@ -571,7 +593,8 @@ int run_reloc(int argc, char** argv) {
       "hwr-bench reloc: %d starts per scene (seed %llu), %d false starts (outdoor vs lab prior); attempts "
       "from %.1f m "
       "every %.1f m, at most %d / %.1f m; keyframes every %zu frames while moving\n",
-      o.starts, static_cast<unsigned long long>(o.seed), o.false_starts, o.first_motion_m, o.attempt_step_m,
+      o.start_frames.empty() ? o.starts : static_cast<int>(o.start_frames.size()),
+      static_cast<unsigned long long>(o.seed), o.false_starts, o.first_motion_m, o.attempt_step_m,
       o.max_attempts, o.max_motion_m, o.keyframe_step);
   std::printf(
       "relocalizer: RelocalizerConfig defaults (top_k %d, min_votes %d, keep_best %d, min_inlier_ratio "
@@ -641,7 +664,16 @@ int run_reloc(int argc, char** argv) {
         sc.prior->T_imu_cam_from_sim
             ? "; its store has no T_imu_cam or another than the simulator's: the simulator's mount is used"
             : "");
-    for (size_t f : draw_starts(*sc.revisit, o.starts, o.max_motion_m + 0.5, &rng)) {
+    const size_t last = last_start(*sc.revisit, o.max_motion_m + 0.5);
+    for (size_t f : o.start_frames) {
+      if (f > last) {
+        std::fprintf(stderr, "reloc: %s: start frame %zu is past the last usable start (f%zu)\n",
+                     name.c_str(), f, last);
+        return 2;
+      }
+    }
+    for (size_t f : o.start_frames.empty() ? draw_starts(*sc.revisit, o.starts, o.max_motion_m + 0.5, &rng)
+                                           : o.start_frames) {
       sc.starts.push_back(std::make_unique<RelocStart>(sc.revisit.get(), f, o.keyframe_step, kMaxFeatures));
     }
     scenes.push_back(std::move(sc));

@@ -91,7 +91,9 @@ struct OrbRefinement {
   Eigen::Isometry3d T_prior_world = Eigen::Isometry3d::Identity();
   int correspondences = 0, inliers = 0, keyframes = 0;
   double sigma_m = 0, sigma_rad = 0;  // largest 1-sigma of the camera position / rotation
-  std::string why;                    // when !ok
+  // The pose-only fit gave T_prior_world with at least min_inliers inliers (ok: its sigmas passed too).
+  bool pose_valid = false;
+  std::string why;  // when !ok
 };
 
 // Step b's index over every prior descriptor: bit-sampling LSH for Hamming space (Indyk & Motwani
@@ -345,9 +347,10 @@ struct Relocalizer::Impl {
     return !(fc.depth_m > 0 && std::abs(p_cam.z() - fc.depth_m) > depth_frac * fc.depth_m);
   }
   // Step d': the current keyframe's ORB matches with the prior keyframes near the camera under
-  // T_prior_world, gated there, and the pose-only fit on them (see RelocalizerConfig::orb_refine).
+  // T_prior_world, gated there, and the pose-only fit on them (see RelocalizerConfig::orb_refine),
+  // needing min_inliers correspondences, RANSAC inliers and fit inliers.
   OrbRefinement orb_refine(const Eigen::Isometry3d& T_prior_world, const RelocalizationQuery& q,
-                           const PriorMap& prior);
+                           const PriorMap& prior, int min_inliers);
   // Gathers the prior points about `center` into `target` unless the last gather covers it.
   // The current keyframe's ORB matches with prior keyframe kf (its keypoints with depth, moved to the
   // prior frame), then RANSAC: T_cam_world of the result is the current camera's pose in the prior
@@ -444,6 +447,7 @@ struct Relocalizer::Impl {
   std::vector<Hypothesis> picked_seeds;        // copies of the picks before write-back
   std::vector<int> excluded_keyframes;         // step e: keyframes that made the best fit
   std::vector<int> excluded_none;              // step d': no keyframe is excluded (stays empty)
+  std::vector<Eigen::Vector3d> rival_places;   // step e: the ORB rival keyframes' positions (prior frame)
 };
 
 namespace {
@@ -499,7 +503,8 @@ double Relocalizer::Impl::points_score(PriorMap* prior, const Eigen::Isometry3d&
 }
 
 OrbRefinement Relocalizer::Impl::orb_refine(const Eigen::Isometry3d& T_prior_world,
-                                            const RelocalizationQuery& q, const PriorMap& prior) {
+                                            const RelocalizationQuery& q, const PriorMap& prior,
+                                            int min_inliers) {
   OrbRefinement out;
   const Eigen::Isometry3d T_prior_cam = T_prior_world * q.T_world_cam;
   const Eigen::Isometry3d T_cam_prior = T_prior_cam.inverse();
@@ -534,20 +539,19 @@ OrbRefinement Relocalizer::Impl::orb_refine(const Eigen::Isometry3d& T_prior_wor
     }
   }
   out.correspondences = nc;
-  if (nc < config.orb_refine_min_inliers) {
+  if (nc < min_inliers) {
     out.why = format("%.0f ORB correspondences over %.0f prior keyframes (need %.0f)", nc, out.keyframes,
-                     config.orb_refine_min_inliers);
+                     min_inliers);
     return out;
   }
   // RANSAC first: the NDT fit may be tens of centimetres off along its weak direction, so the gate is
   // wide and mismatches pass it; the pose-only fit then starts from the consensus pose.
   const estimation::PoseRansacResult consensus =
       ransac.solve(correspondences.data(), nc, K, config.ransac, inlier_mask.data());
-  if (!consensus.ok || consensus.inliers < config.orb_refine_min_inliers ||
-      !finite_pose(consensus.T_cam_world)) {
+  if (!consensus.ok || consensus.inliers < min_inliers || !finite_pose(consensus.T_cam_world)) {
     out.inliers = consensus.inliers;
     out.why = format("RANSAC found %.0f of %.0f correspondences consistent (need %.0f)", consensus.inliers,
-                     nc, config.orb_refine_min_inliers);
+                     nc, min_inliers);
     return out;
   }
   // The pose-only fit over the consensus' inliers (the wide gate's mismatches stay out).
@@ -561,10 +565,9 @@ OrbRefinement Relocalizer::Impl::orb_refine(const Eigen::Isometry3d& T_prior_wor
   const estimation::RefineResult rr =
       refiner.refine(correspondences.data(), ni, K, consensus.T_cam_world, rc, inlier_mask.data());
   out.inliers = rr.inliers;
-  if (!rr.ok || rr.inliers < config.orb_refine_min_inliers || !finite_pose(rr.T_cam_world) ||
-      !rr.covariance.allFinite()) {
-    out.why = format("the pose-only fit kept %.0f of %.0f RANSAC inliers (need %.0f)", rr.inliers, ni,
-                     config.orb_refine_min_inliers);
+  if (!rr.ok || rr.inliers < min_inliers || !finite_pose(rr.T_cam_world) || !rr.covariance.allFinite()) {
+    out.why =
+        format("the pose-only fit kept %.0f of %.0f RANSAC inliers (need %.0f)", rr.inliers, ni, min_inliers);
     return out;
   }
   // Largest 1-sigma of dxi = (rho, phi), T_cam_prior <- exp(dxi) T_cam_prior: rho is the camera's
@@ -576,6 +579,7 @@ OrbRefinement Relocalizer::Impl::orb_refine(const Eigen::Isometry3d& T_prior_wor
   out.sigma_m = std::sqrt(std::max(0.0, es_t.eigenvalues()(2)));
   out.sigma_rad = std::sqrt(std::max(0.0, es_r.eigenvalues()(2)));
   out.T_prior_world = rr.T_cam_world.inverse() * q.T_world_cam.inverse();
+  out.pose_valid = true;
   if (out.sigma_m > config.orb_refine_max_sigma_m || out.sigma_rad > config.orb_refine_max_sigma_rad) {
     out.why = format("the pose-only fit is weak: sigma %.2f cm / %.3f deg (max %.2f cm / %.3f deg)",
                      100.0 * out.sigma_m, out.sigma_rad * kRadToDeg, 100.0 * config.orb_refine_max_sigma_m,
@@ -728,7 +732,9 @@ core::Expected<Relocalizer> Relocalizer::create(const RelocalizerConfig& c, cons
                    c.orb_refine_max_move_m,
                    c.orb_refine_max_move_rad,
                    c.orb_refine_converged_max_move_m,
-                   c.orb_refine_converged_max_move_rad}) {
+                   c.orb_refine_converged_max_move_rad,
+                   c.orb_rival_spacing_m,
+                   c.orb_rival_min_inlier_fraction}) {
     if (!(v >= 0) || !std::isfinite(v)) {
       return core::InvalidArgument(
           "relocalizer: sigma factors, gates, margins and thresholds must be finite and >= 0");
@@ -740,6 +746,10 @@ core::Expected<Relocalizer> Relocalizer::create(const RelocalizerConfig& c, cons
   if (!fine.ok()) return core::InvalidArgument("relocalizer: ndt_fine: " + fine.status().message());
   if (!(c.orb_refine_max_score_loss < 1.0)) {
     return core::InvalidArgument("relocalizer: orb_refine_max_score_loss must be in [0, 1)");
+  }
+  if (c.orb_rival_keyframes < 0 || !(c.orb_rival_min_inlier_fraction <= 1.0)) {
+    return core::InvalidArgument(
+        "relocalizer: orb_rival_keyframes must be >= 0, orb_rival_min_inlier_fraction in [0, 1]");
   }
   if (c.min_structure_points < 1 || !(c.structure_voxel_m > 0) || !std::isfinite(c.structure_voxel_m) ||
       !(c.structure_min_normal_z >= 0 && c.structure_min_normal_z <= 1)) {
@@ -994,7 +1004,7 @@ RelocalizationResult Relocalizer::relocalize(const RelocalizationQuery& q, Prior
                        m.n_structure, cfg.min_structure_points);
       return out;
     }
-    const OrbRefinement o = m.orb_refine(T_fit, q, *prior);
+    const OrbRefinement o = m.orb_refine(T_fit, q, *prior, cfg.orb_refine_min_inliers);
     out.why = o.why;
     if (!o.ok) return out;
     const PoseDistance d = pose_distance(T_fit, o.T_prior_world, m.centroid_world);
@@ -1408,6 +1418,47 @@ RelocalizationResult Relocalizer::relocalize(const RelocalizationQuery& q, Prior
       break;
     }
   }
+  // ORB rivals of a weak fit: its position along the direction the geometry leaves free came from
+  // appearance alone (step d'), and appearance can repeat. The sim's textures tile every 2.6-4.1 m, so
+  // one long wall and the ground look the same every 12.3 m: a 50-start run accepted a fit 49.06 m
+  // along the factory hall's wall (outdoor f4678; 345 ORB inliers at the fit, where the prior run had
+  // passed at the current camera's distance from the wall; 12 votes for the true place's keyframes,
+  // 100 for the copy's). The best-voted prior keyframes away from the fit, one per place, looking
+  // the same way, are matched (RANSAC) and the pose refined by ORB there; a distinct pose the
+  // keypoints support with orb_rival_min_inlier_fraction of the fit's inliers competes in the
+  // structure margin below (where the geometry is alike too: kAmbiguous). NDT from such a seed (the
+  // rivals above) would slide along the weak direction wherever the ground pulls it.
+  if (cfg.orb_rival_keyframes > 0 && best->orb_refined) {
+    const Eigen::Isometry3d T_prior_cam = T * q.T_world_cam;
+    const Eigen::Vector3d axis = T_prior_cam.linear().col(2);
+    const double min_cos = std::cos(cfg.verify_max_angle_rad);
+    const int min_inliers =
+        std::max(cfg.min_orb_inliers,
+                 static_cast<int>(std::ceil(cfg.orb_rival_min_inlier_fraction * best->orb_refine_inliers)));
+    m.rival_places.clear();
+    for (const auto& [votes, c] : m.ranked) {
+      if (res.counters.orb_rival_tests >= cfg.orb_rival_keyframes || votes < 1) break;
+      const PriorKeyframe& kf = kfs[static_cast<size_t>(c)];
+      const Eigen::Vector3d p = kf.T_prior_cam.translation();
+      if ((p - T_prior_cam.translation()).norm() <= cfg.verify_radius_m) continue;  // the fit's place
+      if (kf.T_prior_cam.linear().col(2).dot(axis) < min_cos) continue;
+      bool covered = false;
+      for (const Eigen::Vector3d& o : m.rival_places)
+        covered = covered || (o - p).norm() < cfg.orb_rival_spacing_m;
+      if (covered) continue;
+      m.rival_places.push_back(p);
+      ++res.counters.orb_rival_tests;
+      const estimation::PoseRansacResult rr = m.ransac_against(kf, *q.features, &res.counters);
+      if (!rr.ok) continue;
+      const Eigen::Isometry3d T_seed = rr.T_cam_world.inverse() * q.T_world_cam.inverse();
+      if (!distinct(T_seed) || !gates_ok(T_seed)) continue;
+      const OrbRefinement o = m.orb_refine(T_seed, q, *prior, min_inliers);
+      if (!o.pose_valid || !distinct(o.T_prior_world) || !gates_ok(o.T_prior_world)) continue;
+      ++res.counters.orb_rivals;
+      ++res.rivals_evaluated;
+      m.rival_poses.push_back(o.T_prior_world);
+    }
+  }
   double fine_margin = (best->fine_score - fine_rival) / best->fine_score;
   double coarse_margin =
       best->coarse_score > 0 ? (best->coarse_score - coarse_rival) / best->coarse_score : -1.0;
@@ -1454,8 +1505,11 @@ RelocalizationResult Relocalizer::relocalize(const RelocalizationQuery& q, Prior
     return done(RelocalizationReason::kAmbiguous,
                 std::string("relocalizer: a distinct pose fits almost as well (score margin over ") +
                     margin_over +
-                    format(" fine %.2f, coarse %.2f, need %.2f; %.0f rivals evaluated)", fine_margin,
-                           coarse_margin, cfg.min_score_margin, res.rivals_evaluated));
+                    format(" fine %.2f, coarse %.2f, need %.2f; %.0f rivals evaluated", fine_margin,
+                           coarse_margin, cfg.min_score_margin, res.rivals_evaluated) +
+                    (res.counters.orb_rivals > 0
+                         ? format(", %.0f of them ORB rivals of the weak fit)", res.counters.orb_rivals)
+                         : std::string(")")));
   }
   // Accepted. A converged fit is polished now (orb_refine_converged): the verdict above was reached on
   // NDT's pose; the polished pose replaces it only when it passes the same pose-dependent tests (the

@@ -745,6 +745,43 @@ TEST(Relocalizer, GivenBitIdenticalOrNearbyCopiesThenAmbiguousWithoutPriors) {
   expect_ambiguous("bays 2.5 m apart", stores().repeated_near, kNearShift_m);
 }
 
+// Step e's ORB rivals: a weak fit (step d') rests on appearance along the direction the geometry leaves
+// free, and appearance can repeat (outdoors a fit 49 m along a wall whose texture tiles was accepted).
+// Every fine fit is judged degenerate here, so every fit is a weak one refined by ORB.
+TEST(Relocalizer, GivenAWeakFitInARepetitiveRegionThenItsOrbRivalsFindTheCopy) {
+  RelocalizerConfig c;
+  c.ndt_fine.degenerate_eigenvalue_ratio = 0.99;
+  auto made = Relocalizer::create(c, walk().K, kMaxFeatures);
+  ASSERT_TRUE(made.ok()) << made.status().message();
+  Relocalizer reloc = std::move(made).value();
+  const Eigen::Isometry3d T_true = known_T_prior_world();
+  const CurrentRun run = make_current(walk().query_lab, T_true);
+  {
+    // Control: the bay alone. The ORB rivals do not veto a fit that has no copy.
+    auto bay = PriorMap::open(stores().bay_only);
+    ASSERT_TRUE(bay.ok()) << bay.status().message();
+    const RelocalizationResult r = reloc.relocalize(make_query(run), &bay.value());
+    print_result("weak fit, the bay alone", r);
+    std::printf("[ reloc    ]   ORB rival keyframes %d, rivals %d\n", r.counters.orb_rival_tests,
+                r.counters.orb_rivals);
+    ASSERT_TRUE(r.localized) << r.message;
+    EXPECT_TRUE(r.orb_refined_weak);
+    const Errors e = pose_errors(r.T_prior_world, T_true);
+    EXPECT_LT(e.m, 0.02);
+    EXPECT_LT(e.deg, 0.3);
+  }
+  auto prior = PriorMap::open(stores().repeated);
+  ASSERT_TRUE(prior.ok()) << prior.status().message();
+  const RelocalizationResult r = reloc.relocalize(make_query(run), &prior.value());
+  print_result("weak fit, repeated bays", r);
+  std::printf("[ reloc    ]   ORB rival keyframes %d, rivals %d\n", r.counters.orb_rival_tests,
+              r.counters.orb_rivals);
+  EXPECT_FALSE(r.localized) << r.message;
+  EXPECT_EQ(r.reason, RelocalizationReason::kAmbiguous) << r.message;
+  EXPECT_GE(r.counters.orb_rivals, 1);
+  EXPECT_NE(r.message.find("ORB rivals of the weak fit"), std::string::npos) << r.message;
+}
+
 TEST(Relocalizer, GivenContradictingPriorsThenNotLocalized) {
   auto prior = PriorMap::open(stores().full);
   ASSERT_TRUE(prior.ok());

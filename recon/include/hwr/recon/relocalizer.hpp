@@ -69,7 +69,10 @@
 //     NDT from the best turned 180 deg about the vertical through the local map's centroid, and
 //     from the first RANSAC pose distinct from the fit among the next rival_scan ranked candidates
 //     with a vote, away (> verify_radius_m) from the fitted camera (a repeated place: the second
-//     vote cluster), else from the best-voted candidate keyframe's pose away from the fit. A
+//     vote cluster), else from the best-voted candidate keyframe's pose away from the fit; for a weak
+//     fit (step d') also the ORB rivals: the poses that RANSAC and the ORB refinement give at the
+//     best-voted prior keyframes away from the fit (orb_rival_keyframes; along its weak direction
+//     the fit stands on appearance, which can repeat where the geometry does too). A
 //     repeated place is found mainly through the hypotheses: with near-tie votes its copies' keyframes
 //     reach the top_k, RANSAC puts a hypothesis on each copy and the keep_best refinement scores them
 //     against each other (copies closer than verify_radius_m too, which the scan skips). Measured
@@ -276,6 +279,16 @@ struct RelocalizerConfig {
   double distinct_m = 0.5, distinct_rad = 10.0 * 3.14159265358979323846 / 180.0;
   double max_ndt_correction_m = 0.3, max_ndt_correction_rad = 3.0 * 3.14159265358979323846 / 180.0;
   double position_gate_sigmas = 3.0, position_gate_margin_m = 1.0;
+  // ORB rivals of a weak (step d', ORB-refined) fit: its position along the direction the geometry
+  // leaves free rests on appearance, which can repeat (a long wall: the sim's textures tile every
+  // 2.6-4.1 m). The orb_rival_keyframes best-voted prior keyframes more than verify_radius_m from
+  // the fitted camera, looking the same way (verify_max_angle_rad), at least orb_rival_spacing_m
+  // apart, are matched with the current keyframe (RANSAC) and the pose refined by ORB there
+  // (orb_refine's gates, no sigma test); a distinct pose with at least orb_rival_min_inlier_fraction
+  // of the fit's refinement inliers is a rival in the structure margin. 0: off.
+  int orb_rival_keyframes = 6;
+  double orb_rival_spacing_m = 2.0;
+  double orb_rival_min_inlier_fraction = 0.5;
   // ORB verification of the best fit: of the verify_keyframes prior keyframes nearest its camera
   // (within verify_radius_m, optical axes within verify_max_angle_rad), one must have at least
   // min_verified_matches LSH matches with the current keyframe that its pose reprojects within
@@ -322,6 +335,8 @@ struct RelocalizationCounters {
   int ndt_converged = 0;      // coarse
   int64_t target_points = 0;  // largest prior target used
   int rival_seeds = 0;        // step e: NDT runs from rival seeds (180 deg turn, second cluster, keyframe)
+  int orb_rival_tests = 0;    // step e: prior keyframes matched for ORB rivals of a weak fit
+  int orb_rivals = 0;         // ... that gave a distinct ORB-refined pose (a rival in the structure margin)
 };
 
 struct RelocalizationResult {
