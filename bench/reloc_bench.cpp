@@ -25,8 +25,10 @@
 //                   [--robot PATH] [--false-starts 20] [--max-attempts 8] [--first-motion-m 1]
 //                   [--attempt-step-m 1] [--max-motion-m 8] [--keyframe-step 12] [--verbose]
 //                   [--sets neither,imu,gnss,both] [--orb-refine all|weak|off] [--start-frames F,F,...]
-//  --start-frames: these revisit frames instead of --starts random ones, in every scene (to rerun
-//    the starts a verbose log names, e.g. "start f4678"); frames past the last usable start are refused.
+//  --start-frames: these revisit frames instead of --starts random ones, in every scene of --scenes
+//    (to rerun the starts a verbose log names: --scenes outdoor --start-frames f4678); frames past a
+//    scene's last usable start are refused before its prior is opened. The false check (outdoor
+//    queries vs the lab prior) then uses the first --false-starts of them.
 
 #include "bench_command.hpp"
 
@@ -545,15 +547,14 @@ int run_reloc(int argc, char** argv) {
     } else if (a == "--start-frames") {
       std::stringstream ss(value("--start-frames"));
       for (std::string f; std::getline(ss, f, ',');) {
-        if (!f.empty() && f[0] == 'f') f.erase(0, 1);
-        char* end = nullptr;
-        const unsigned long long v = std::strtoull(f.c_str(), &end, 10);
-        if (f.empty() || end == nullptr || *end != '\0') {
+        const std::string digits = !f.empty() && f[0] == 'f' ? f.substr(1) : f;
+        if (digits.empty() || digits.size() > 9 ||
+            !std::all_of(digits.begin(), digits.end(), [](char ch) { return ch >= '0' && ch <= '9'; })) {
           std::fprintf(stderr, "reloc: --start-frames takes frame numbers (f4678 or 4678), got '%s'\n",
                        f.c_str());
           return 2;
         }
-        o.start_frames.push_back(static_cast<size_t>(v));
+        o.start_frames.push_back(static_cast<size_t>(std::stoul(digits)));
       }
     } else if (a == "--sets") {
       o.sets.clear();
@@ -621,18 +622,27 @@ int run_reloc(int argc, char** argv) {
       std::fprintf(stderr, "reloc: %s\n", prior_run.status().message().c_str());
       return 1;
     }
-    auto prior = open_prior(o, name, **prior_run);
-    if (!prior.ok()) {
-      std::fprintf(stderr, "reloc: %s\n", prior.status().message().c_str());
-      return 1;
-    }
-    sc.prior = std::make_unique<Prior>(std::move(prior).value());
     auto revisit = RelocSimRun::open(name + "-revisit", kMaxFeatures);
     if (!revisit.ok()) {
       std::fprintf(stderr, "reloc: %s\n", revisit.status().message().c_str());
       return 1;
     }
     sc.revisit = std::move(revisit).value();
+    // Chosen starts are checked before the prior map is opened (or built: minutes).
+    const size_t last = last_start(*sc.revisit, o.max_motion_m + 0.5);
+    for (size_t f : o.start_frames) {
+      if (f > last) {
+        std::fprintf(stderr, "reloc: %s: start frame %zu is past the last usable start (f%zu)\n",
+                     name.c_str(), f, last);
+        return 2;
+      }
+    }
+    auto prior = open_prior(o, name, **prior_run);
+    if (!prior.ok()) {
+      std::fprintf(stderr, "reloc: %s\n", prior.status().message().c_str());
+      return 1;
+    }
+    sc.prior = std::make_unique<Prior>(std::move(prior).value());
     const int max_features = std::max(kMaxFeatures, sc.prior->map->max_keyframe_features());
     auto reloc = recon::Relocalizer::create(rcfg, sc.revisit->K(), max_features);
     if (!reloc.ok()) {
@@ -664,14 +674,6 @@ int run_reloc(int argc, char** argv) {
         sc.prior->T_imu_cam_from_sim
             ? "; its store has no T_imu_cam or another than the simulator's: the simulator's mount is used"
             : "");
-    const size_t last = last_start(*sc.revisit, o.max_motion_m + 0.5);
-    for (size_t f : o.start_frames) {
-      if (f > last) {
-        std::fprintf(stderr, "reloc: %s: start frame %zu is past the last usable start (f%zu)\n",
-                     name.c_str(), f, last);
-        return 2;
-      }
-    }
     for (size_t f : o.start_frames.empty() ? draw_starts(*sc.revisit, o.starts, o.max_motion_m + 0.5, &rng)
                                            : o.start_frames) {
       sc.starts.push_back(std::make_unique<RelocStart>(sc.revisit.get(), f, o.keyframe_step, kMaxFeatures));

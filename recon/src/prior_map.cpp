@@ -204,11 +204,15 @@ core::Status PriorMap::load_cloud(size_t index) {
   return core::Status::Ok();
 }
 
-PreloadStats PriorMap::preload_clouds() {
+PreloadStats PriorMap::preload_clouds(const std::function<bool()>& keep_going) {
   PreloadStats stats;
   for (size_t i = 0; i < segments_.size(); ++i) {
     PriorSegment& s = segments_[i];
     if (s.loaded || s.unreadable) continue;
+    if (keep_going && !keep_going()) {
+      stats.cancelled = true;  // the rest stay on disk; points_near reads them when needed
+      break;
+    }
     // s.points is segment.yaml's count until read: thinned, the cloud is smaller, so try it.
     const core::Status st = load_cloud(i);
     if (!st.ok()) {

@@ -221,10 +221,17 @@ void RelocalizationWorker::run() {
   // first attempt's time is the relocalization's and the robot starts without waiting for it.
   relocalizer_.prepare(prior_);
   // The clouds that fit the prior map's budget, read now for the same reason (prior_map.hpp).
-  const PreloadStats preload = prior_.preload_clouds();
-  HWR_LOG_INFO("reloc-worker", "prior map: %d of %zu segment clouds in memory (%lld points), %d left on disk",
-               preload.segments_in_memory, prior_.segments().size(),
-               static_cast<long long>(preload.points_in_memory), preload.segments_over_budget);
+  // stop() does not wait for the rest (2-3 s for the sim outdoor prior).
+  const PreloadStats preload = prior_.preload_clouds([this] {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return !stop_;
+  });
+  HWR_LOG_INFO(
+      "reloc-worker", "prior map: %d of %zu segment clouds in memory (%lld points), %d left on disk%s",
+      preload.segments_in_memory, prior_.segments().size(), static_cast<long long>(preload.points_in_memory),
+      static_cast<int>(prior_.segments().size()) - preload.segments_in_memory -
+          prior_.counters().unreadable_segments,
+      preload.cancelled ? " (preload stopped: the worker is stopping)" : "");
   {
     std::lock_guard<std::mutex> lock(mutex_);
     busy_.store(false, std::memory_order_release);

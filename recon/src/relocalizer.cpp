@@ -678,12 +678,13 @@ core::Expected<Relocalizer> Relocalizer::create(const RelocalizerConfig& c, cons
   if (c.top_k < 1 || c.keep_best < 1 || c.keep_best > 3 || c.min_orb_inliers < 3 || c.min_votes < 0 ||
       c.verify_keyframes < 0 || c.yaw_sweep_steps < 0 || c.rival_scan < 0 || c.nms_keyframes < 0 ||
       c.vote_tie_bits < 0 || c.vote_max_distance < 0 || c.vote_tie_bits > 256 || c.vote_max_distance > 256 ||
-      c.orb_refine_keyframes < 0 || c.orb_refine_min_inliers < 6) {
+      c.orb_refine_keyframes < 0 || c.orb_refine_min_inliers < 6 || c.orb_refine_converged_min_inliers < 6) {
     return core::InvalidArgument(
         "relocalizer: top_k >= 1, keep_best in [1, 3], min_orb_inliers >= 3, min_votes >= 0, "
         "verify_keyframes >= 0, yaw_sweep_steps >= 0, rival_scan >= 0, nms_keyframes >= 0, "
         "vote_tie_bits and vote_max_distance in [0, 256] (bits of an ORB descriptor), "
-        "orb_refine_keyframes >= 0, orb_refine_min_inliers >= 6 required");
+        "orb_refine_keyframes >= 0, orb_refine_min_inliers and orb_refine_converged_min_inliers >= 6 "
+        "required");
   }
   if (c.vote_lsh.tables < 1 || c.vote_lsh.tables > 16 || c.vote_lsh.key_bits < 1 ||
       c.vote_lsh.key_bits > 20 || c.vote_lsh.multi_probe < 0 || c.vote_lsh.multi_probe > 2) {
@@ -1004,7 +1005,8 @@ RelocalizationResult Relocalizer::relocalize(const RelocalizationQuery& q, Prior
                        m.n_structure, cfg.min_structure_points);
       return out;
     }
-    const OrbRefinement o = m.orb_refine(T_fit, q, *prior, cfg.orb_refine_min_inliers);
+    const OrbRefinement o = m.orb_refine(
+        T_fit, q, *prior, weak ? cfg.orb_refine_min_inliers : cfg.orb_refine_converged_min_inliers);
     out.why = o.why;
     if (!o.ok) return out;
     const PoseDistance d = pose_distance(T_fit, o.T_prior_world, m.centroid_world);
@@ -1427,14 +1429,18 @@ RelocalizationResult Relocalizer::relocalize(const RelocalizationQuery& q, Prior
   // the same way, are matched (RANSAC) and the pose refined by ORB there; a distinct pose the
   // keypoints support with orb_rival_min_inlier_fraction of the fit's inliers competes in the
   // structure margin below (where the geometry is alike too: kAmbiguous). NDT from such a seed (the
-  // rivals above) would slide along the weak direction wherever the ground pulls it.
-  if (cfg.orb_rival_keyframes > 0 && best->orb_refined) {
+  // rivals above) would slide along the weak direction wherever the ground pulls it. They are not
+  // NDT results, so they do not count as evaluated rivals (margin_known).
+  const bool structure_margin = m.n_structure >= cfg.min_structure_points;
+  const size_t first_orb_rival = m.rival_poses.size();
+  if (cfg.orb_rival_keyframes > 0 && best->orb_refined && structure_margin) {
     const Eigen::Isometry3d T_prior_cam = T * q.T_world_cam;
     const Eigen::Vector3d axis = T_prior_cam.linear().col(2);
     const double min_cos = std::cos(cfg.verify_max_angle_rad);
     const int min_inliers =
-        std::max(cfg.min_orb_inliers,
-                 static_cast<int>(std::ceil(cfg.orb_rival_min_inlier_fraction * best->orb_refine_inliers)));
+        std::max({6, cfg.min_orb_inliers,
+                  static_cast<int>(std::ceil(cfg.orb_rival_min_inlier_fraction * best->orb_refine_inliers))});
+    RelocalizationCounters geometry_only;  // step c's RANSAC counters stay step c's
     m.rival_places.clear();
     for (const auto& [votes, c] : m.ranked) {
       if (res.counters.orb_rival_tests >= cfg.orb_rival_keyframes || votes < 1) break;
@@ -1448,14 +1454,14 @@ RelocalizationResult Relocalizer::relocalize(const RelocalizationQuery& q, Prior
       if (covered) continue;
       m.rival_places.push_back(p);
       ++res.counters.orb_rival_tests;
-      const estimation::PoseRansacResult rr = m.ransac_against(kf, *q.features, &res.counters);
+      const estimation::PoseRansacResult rr = m.ransac_against(kf, *q.features, &geometry_only);
       if (!rr.ok) continue;
       const Eigen::Isometry3d T_seed = rr.T_cam_world.inverse() * q.T_world_cam.inverse();
       if (!distinct(T_seed) || !gates_ok(T_seed)) continue;
       const OrbRefinement o = m.orb_refine(T_seed, q, *prior, min_inliers);
       if (!o.pose_valid || !distinct(o.T_prior_world) || !gates_ok(o.T_prior_world)) continue;
       ++res.counters.orb_rivals;
-      ++res.rivals_evaluated;
+      res.orb_rival_max_inliers = std::max(res.orb_rival_max_inliers, o.inliers);
       m.rival_poses.push_back(o.T_prior_world);
     }
   }
@@ -1463,10 +1469,10 @@ RelocalizationResult Relocalizer::relocalize(const RelocalizationQuery& q, Prior
   double coarse_margin =
       best->coarse_score > 0 ? (best->coarse_score - coarse_rival) / best->coarse_score : -1.0;
   const char* margin_over = "all points";
-  // The rivals' best structure scores per level (kept for the polish below).
+  // The rivals' best structure scores per level (kept for the polish below), and which rival it was.
   double best_resolution[2] = {0, 0};
   double structure_rival[2] = {0, 0};
-  const bool structure_margin = m.n_structure >= cfg.min_structure_points;
+  size_t closest_rival[2] = {m.rival_poses.size(), m.rival_poses.size()};
   if (structure_margin) {
     // Over the structure points, at the fine and the coarse finest resolutions, every rival at its
     // own pose (the ground fits them all alike; structure_points.hpp).
@@ -1479,17 +1485,24 @@ RelocalizationResult Relocalizer::relocalize(const RelocalizationQuery& q, Prior
       const double s_best = m.structure_score(prior, T, best_resolution[level], &res.counters, &st);
       if (!st.ok()) return done(RelocalizationReason::kPriorMapError, st.message());
       double s_rival = 0;
-      for (const Eigen::Isometry3d& R : m.rival_poses) {
-        const double s_r = m.structure_score(prior, R, best_resolution[level], &res.counters, &st);
+      for (size_t ri = 0; ri < m.rival_poses.size(); ++ri) {
+        const double s_r =
+            m.structure_score(prior, m.rival_poses[ri], best_resolution[level], &res.counters, &st);
         if (!st.ok()) return done(RelocalizationReason::kPriorMapError, st.message());
         // A rival whose target could not be built is not known to score lower: fail closed.
-        s_rival = std::max(s_rival, std::isfinite(s_r) ? s_r : s_best);
+        const double v = std::isfinite(s_r) ? s_r : s_best;
+        if (v > s_rival) {
+          s_rival = v;
+          closest_rival[level] = ri;
+        }
       }
       structure_rival[level] = s_rival;
       if (std::isfinite(s_best) && s_best > 0) margins[level] = (s_best - s_rival) / s_best;
     }
     fine_margin = margins[0];
     coarse_margin = margins[1];
+    const size_t decisive = closest_rival[fine_margin <= coarse_margin ? 0 : 1];
+    res.closest_rival_orb = decisive < m.rival_poses.size() && decisive >= first_orb_rival;
   }
   res.score_margin = std::min(fine_margin, coarse_margin);
   res.margin_known = res.rivals_evaluated > 0;
@@ -1502,20 +1515,23 @@ RelocalizationResult Relocalizer::relocalize(const RelocalizationQuery& q, Prior
                 "without both a position and a yaw prior that is not accepted");
   }
   if (!(res.score_margin >= cfg.min_score_margin)) {
-    return done(RelocalizationReason::kAmbiguous,
-                std::string("relocalizer: a distinct pose fits almost as well (score margin over ") +
-                    margin_over +
-                    format(" fine %.2f, coarse %.2f, need %.2f; %.0f rivals evaluated", fine_margin,
-                           coarse_margin, cfg.min_score_margin, res.rivals_evaluated) +
-                    (res.counters.orb_rivals > 0
-                         ? format(", %.0f of them ORB rivals of the weak fit)", res.counters.orb_rivals)
-                         : std::string(")")));
+    return done(
+        RelocalizationReason::kAmbiguous,
+        std::string("relocalizer: a distinct pose fits almost as well (score margin over ") + margin_over +
+            format(" fine %.2f, coarse %.2f, need %.2f; %.0f rivals evaluated", fine_margin, coarse_margin,
+                   cfg.min_score_margin, res.rivals_evaluated) +
+            (res.counters.orb_rivals > 0
+                 ? format(", %.0f ORB rivals of the weak fit with up to %.0f inliers against its %.0f",
+                          res.counters.orb_rivals, res.orb_rival_max_inliers, best->orb_refine_inliers)
+                 : std::string()) +
+            (res.closest_rival_orb ? "; the closest is an ORB rival)" : ")"));
   }
   // Accepted. A converged fit is polished now (orb_refine_converged): the verdict above was reached on
   // NDT's pose; the polished pose replaces it only when it passes the same pose-dependent tests (the
   // priors' gates, the ORB seed's max_ndt_correction, the ORB check, the score margin against the
   // same rivals), moved little and the geometry agrees. The inlier ratio stays NDT's (a move of at
   // most orb_refine_converged_max_move). Otherwise NDT's pose is returned.
+  std::string not_polished;  // why the polish was refused (the message says so)
   if (cfg.orb_refine && cfg.orb_refine_converged && !best->orb_refined && structure_margin) {
     ++res.orb_refine_attempts;
     const Refined o = refine_by_orb(T, false);
@@ -1559,6 +1575,7 @@ RelocalizationResult Relocalizer::relocalize(const RelocalizationQuery& q, Prior
       }
     }
     if (!why.empty() && res.orb_refine_failure.empty()) res.orb_refine_failure = "polish: " + why;
+    not_polished = why;
   }
   return done(
       RelocalizationReason::kLocalized,
@@ -1573,6 +1590,7 @@ RelocalizationResult Relocalizer::relocalize(const RelocalizationQuery& q, Prior
                                     res.orb_refine_inliers, 100.0 * res.orb_refine_sigma_m,
                                     res.orb_refine_sigma_rad * kRadToDeg)
                            : std::string()) +
+          (not_polished.empty() ? "" : " (not polished: " + not_polished + ")") +
           (res.margin_known ? "" : " (no rival: the position and yaw priors pin the pose)"));
 }
 

@@ -433,6 +433,37 @@ TEST(PriorMap, GivenAThinningVoxelThenEachCloudHoldsItsVoxelMeansAndPreloadFills
   EXPECT_EQ(PriorMap::open(tmp.file("store"), bad).status().code(), core::ErrorCode::kInvalidArgument);
 }
 
+TEST(PriorMap, GivenKeepGoingSaysStopThenThePreloadStopsThereAndQueriesReadTheRest) {
+  TempDir tmp;
+  const std::vector<SegmentRecord> segments = make_segments();
+  write_store(tmp.file("store"), segments);
+  PriorMapConfig config;
+  config.cloud_reach_m = 2.5;
+  auto map = PriorMap::open(tmp.file("store"), config);
+  ASSERT_TRUE(map.ok()) << map.status().message();
+  int asked = 0;
+  const PreloadStats pre = map->preload_clouds([&] { return ++asked <= 1; });  // one read, then stop
+  EXPECT_TRUE(pre.cancelled);
+  EXPECT_EQ(asked, 2);
+  EXPECT_EQ(pre.segments_loaded, 1);
+  EXPECT_EQ(pre.segments_in_memory, 1);
+  EXPECT_TRUE(map->segments()[0].loaded);
+  EXPECT_FALSE(map->segments()[1].loaded);
+  EXPECT_EQ(map->counters().cloud_loads, 1u);
+  // What was left on disk is read when a query needs it.
+  std::vector<CloudPoint> out;
+  auto st = map->points_near(segment_pose(2).translation(), 5.0, &out);
+  ASSERT_TRUE(st.ok()) << st.status().message();
+  EXPECT_EQ(st->segments_used, 1);
+  EXPECT_FALSE(out.empty());
+  EXPECT_EQ(map->counters().cloud_loads, 2u);
+  EXPECT_TRUE(map->segments()[2].loaded);
+  // A preload that is not stopped reads the rest and says so.
+  const PreloadStats rest = map->preload_clouds([] { return true; });
+  EXPECT_FALSE(rest.cancelled);
+  EXPECT_EQ(rest.segments_in_memory, static_cast<int>(segments.size()));
+}
+
 TEST(PriorMap, GivenAMissingOrDamagedStoreThenTheErrorNamesTheFile) {
   TempDir tmp;
   auto missing = PriorMap::open(tmp.file("store") + "/nope");

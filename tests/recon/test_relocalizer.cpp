@@ -251,8 +251,11 @@ void write_repeated(const std::string& dir, const StoreMetadata& meta, double sh
 // the ORB verification radius).
 struct PriorStores {
   TempDir tmp;
-  std::string full, partial, repeated, repeated_identical, repeated_near, bay_only;
+  std::string full, partial, repeated, repeated_identical, repeated_near, bay_only, repeated_dim;
 };
+// The dim copy: its descriptors kDimBitFlips bits off (beyond vote_tie_bits of the original's), so its
+// keyframes get few votes, as the true place's did outdoors (12 against the copy's 100).
+constexpr int kDimBitFlips = 16;
 constexpr double kNearShift_m = 2.5;
 const PriorStores& stores() {
   static const PriorStores* s = [] {
@@ -264,6 +267,7 @@ const PriorStores& stores() {
     p->repeated_identical = p->tmp.path() + "/repeated_identical";
     p->repeated_near = p->tmp.path() + "/repeated_near";
     p->bay_only = p->tmp.path() + "/bay_only";
+    p->repeated_dim = p->tmp.path() + "/repeated_dim";
     StoreMetadata meta;
     meta.run_id = "lab-prior";
     meta.intrinsics = w.K;
@@ -281,6 +285,7 @@ const PriorStores& stores() {
     write_repeated(p->repeated_identical, meta, kRepeatShift_m, 0);
     write_repeated(p->repeated_near, meta, kNearShift_m, kRepeatBitFlips);
     write_repeated(p->bay_only, meta, 0.0, 0, /*with_copy=*/false);
+    write_repeated(p->repeated_dim, meta, kRepeatShift_m, kDimBitFlips);
     return p;
   }();
   return *s;
@@ -555,10 +560,14 @@ TEST(Relocalizer, GivenAConvergedFitThenTheOrbPolishMovesThePoseButNeverTheVerdi
   ASSERT_TRUE(prior.ok()) << prior.status().message();
   const Eigen::Isometry3d T_true = known_T_prior_world();
   const CurrentRun run = make_current(walk().query_lab, T_true);
-  auto make = [&](bool polish, double max_move_m) {
+  auto make = [&](bool polish, double max_move_m,
+                  int weak_min_inliers = RelocalizerConfig{}.orb_refine_min_inliers,
+                  int polish_min_inliers = RelocalizerConfig{}.orb_refine_converged_min_inliers) {
     RelocalizerConfig c;
     c.orb_refine_converged = polish;
     c.orb_refine_converged_max_move_m = max_move_m;
+    c.orb_refine_min_inliers = weak_min_inliers;
+    c.orb_refine_converged_min_inliers = polish_min_inliers;
     auto r = Relocalizer::create(c, walk().K, kMaxFeatures);
     EXPECT_TRUE(r.ok()) << r.status().message();
     return std::move(r).value();
@@ -599,7 +608,20 @@ TEST(Relocalizer, GivenAConvergedFitThenTheOrbPolishMovesThePoseButNeverTheVerdi
   EXPECT_GT(r2.orb_refine_attempts, 0);
   EXPECT_LT(pose_errors(r2.T_prior_world, r0.T_prior_world).m, 0.002);
   EXPECT_NE(r2.orb_refine_failure.find("polish: the ORB fit is"), std::string::npos) << r2.orb_refine_failure;
+  EXPECT_NE(r2.message.find("(not polished: the ORB fit is"), std::string::npos) << r2.message;
   EXPECT_EQ(r2.orb_refine_accepted, 0);
+
+  // The polish has its own inlier minimum: the weak fits' (here beyond any keyframe's features)
+  // does not apply to it, and its own does.
+  Relocalizer own_minimum = make(true, 0.1, 100'000, 100);
+  const RelocalizationResult r4 = own_minimum.relocalize(q, &prior.value());
+  ASSERT_TRUE(r4.localized) << r4.message;
+  EXPECT_TRUE(r4.orb_refined) << r4.message;
+  Relocalizer polish_minimum = make(true, 0.1, 200, 100'000);
+  const RelocalizationResult r5 = polish_minimum.relocalize(q, &prior.value());
+  ASSERT_TRUE(r5.localized) << r5.message;
+  EXPECT_FALSE(r5.orb_refined);
+  EXPECT_NE(r5.message.find("(not polished: "), std::string::npos) << r5.message;
 
   // Without ORB refinement at all (orb_refine off), no polish either.
   RelocalizerConfig off;
@@ -747,15 +769,25 @@ TEST(Relocalizer, GivenBitIdenticalOrNearbyCopiesThenAmbiguousWithoutPriors) {
 
 // Step e's ORB rivals: a weak fit (step d') rests on appearance along the direction the geometry leaves
 // free, and appearance can repeat (outdoors a fit 49 m along a wall whose texture tiles was accepted).
-// Every fine fit is judged degenerate here, so every fit is a weak one refined by ORB.
+// Every fine fit is judged degenerate here, so every fit is a weak one refined by ORB. One candidate
+// goes to RANSAC, one hypothesis is refined and the rival scan is off, so that the copy 6 m away is
+// not among the hypotheses, and its descriptors are kDimBitFlips off, so that its keyframes rank low
+// (as outdoors, where the other place had 12 votes against the fit's 100).
 TEST(Relocalizer, GivenAWeakFitInARepetitiveRegionThenItsOrbRivalsFindTheCopy) {
-  RelocalizerConfig c;
-  c.ndt_fine.degenerate_eigenvalue_ratio = 0.99;
-  auto made = Relocalizer::create(c, walk().K, kMaxFeatures);
-  ASSERT_TRUE(made.ok()) << made.status().message();
-  Relocalizer reloc = std::move(made).value();
+  auto make = [&](int orb_rival_keyframes) {
+    RelocalizerConfig c;
+    c.ndt_fine.degenerate_eigenvalue_ratio = 0.99;
+    c.top_k = 1;
+    c.keep_best = 1;
+    c.rival_scan = 0;
+    c.orb_rival_keyframes = orb_rival_keyframes;
+    auto r = Relocalizer::create(c, walk().K, kMaxFeatures);
+    EXPECT_TRUE(r.ok()) << r.status().message();
+    return std::move(r).value();
+  };
   const Eigen::Isometry3d T_true = known_T_prior_world();
   const CurrentRun run = make_current(walk().query_lab, T_true);
+  Relocalizer reloc = make(RelocalizerConfig{}.orb_rival_keyframes);
   {
     // Control: the bay alone. The ORB rivals do not veto a fit that has no copy.
     auto bay = PriorMap::open(stores().bay_only);
@@ -766,20 +798,30 @@ TEST(Relocalizer, GivenAWeakFitInARepetitiveRegionThenItsOrbRivalsFindTheCopy) {
                 r.counters.orb_rivals);
     ASSERT_TRUE(r.localized) << r.message;
     EXPECT_TRUE(r.orb_refined_weak);
+    EXPECT_GE(r.counters.orb_rival_tests, 1);  // they ran, and none competed
+    EXPECT_FALSE(r.closest_rival_orb);
     const Errors e = pose_errors(r.T_prior_world, T_true);
     EXPECT_LT(e.m, 0.02);
     EXPECT_LT(e.deg, 0.3);
   }
-  auto prior = PriorMap::open(stores().repeated);
+  auto prior = PriorMap::open(stores().repeated_dim);
   ASSERT_TRUE(prior.ok()) << prior.status().message();
+  // Without ORB rivals the copy is missed: a pose on one of the two bays is returned.
+  Relocalizer blind = make(0);
+  const RelocalizationResult r0 = blind.relocalize(make_query(run), &prior.value());
+  print_result("weak fit, copy, no ORB rivals", r0);
+  EXPECT_TRUE(r0.localized) << r0.message;
+  EXPECT_EQ(r0.counters.orb_rival_tests, 0);
+
   const RelocalizationResult r = reloc.relocalize(make_query(run), &prior.value());
-  print_result("weak fit, repeated bays", r);
-  std::printf("[ reloc    ]   ORB rival keyframes %d, rivals %d\n", r.counters.orb_rival_tests,
-              r.counters.orb_rivals);
+  print_result("weak fit, copy, ORB rivals", r);
+  std::printf("[ reloc    ]   ORB rival keyframes %d, rivals %d, up to %d inliers\n",
+              r.counters.orb_rival_tests, r.counters.orb_rivals, r.orb_rival_max_inliers);
   EXPECT_FALSE(r.localized) << r.message;
   EXPECT_EQ(r.reason, RelocalizationReason::kAmbiguous) << r.message;
   EXPECT_GE(r.counters.orb_rivals, 1);
-  EXPECT_NE(r.message.find("ORB rivals of the weak fit"), std::string::npos) << r.message;
+  EXPECT_TRUE(r.closest_rival_orb) << r.message;  // the ORB rival, not another, decided
+  EXPECT_NE(r.message.find("the closest is an ORB rival"), std::string::npos) << r.message;
 }
 
 TEST(Relocalizer, GivenContradictingPriorsThenNotLocalized) {

@@ -25,6 +25,7 @@
 // cloud allocates (it reads a file); this class runs off the control loop.
 
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -112,6 +113,7 @@ struct PreloadStats {
   int segments_over_budget = 0;  // left on disk: the next would pass max_loaded_points
   int segments_unreadable = 0;
   int64_t points_in_memory = 0;  // afterwards, thinned
+  bool cancelled = false;        // keep_going said stop before every cloud that fits was read
 };
 
 class PriorMap {
@@ -151,8 +153,9 @@ class PriorMap {
   // before its first relocalization attempt (RelocalizationWorker runs it at start, beside
   // Relocalizer::prepare): without GNSS the first attempt's candidates come from anywhere in the map, and
   // reading their clouds then is most of its time. A cloud that fails to read is marked unreadable (as in
-  // points_near). Returns how many segments are in memory afterwards.
-  PreloadStats preload_clouds();
+  // points_near). Returns how many segments are in memory afterwards. keep_going (optional) is asked
+  // before each read: false stops the preload there (a robot shutting down does not wait for it).
+  PreloadStats preload_clouds(const std::function<bool()>& keep_going = {});
 
   PriorMap(PriorMap&&) noexcept = default;
   PriorMap& operator=(PriorMap&&) noexcept = default;

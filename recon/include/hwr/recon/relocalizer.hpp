@@ -253,6 +253,13 @@ struct RelocalizerConfig {
   bool orb_refine_converged = true;
   double orb_refine_converged_max_move_m = 0.1;
   double orb_refine_converged_max_move_rad = 1.0 * 3.14159265358979323846 / 180.0;
+  // The polish's inlier minimum. For a weak fit the ORB fit decides the pose along the weak
+  // direction, so orb_refine_min_inliers keeps it from standing on a partial match with a copy of
+  // the place (12.3 m away outdoors); a polish only moves a fit that step e already accepted, by at
+  // most 10 cm / 1 deg, and faces step e's tests again. A lab start whose converged fit (eigenvalue
+  // ratio 0.0134, just over the degeneracy test's 0.0125) was 3.45 cm off had 162-166
+  // correspondences with the 5 nearest prior keyframes, so 200 refused its polish.
+  int orb_refine_converged_min_inliers = 100;
   int max_source_points = 8'000;    // the local cloud is subsampled (stride) to at most this
   int max_target_points = 150'000;  // the prior target is subsampled (stride) to at most this
   // The coarse stage (1-2 m voxels, seeds only) takes every k-th source point, at most
@@ -284,8 +291,12 @@ struct RelocalizerConfig {
   // 2.6-4.1 m). The orb_rival_keyframes best-voted prior keyframes more than verify_radius_m from
   // the fitted camera, looking the same way (verify_max_angle_rad), at least orb_rival_spacing_m
   // apart, are matched with the current keyframe (RANSAC) and the pose refined by ORB there
-  // (orb_refine's gates, no sigma test); a distinct pose with at least orb_rival_min_inlier_fraction
-  // of the fit's refinement inliers is a rival in the structure margin. 0: off.
+  // (orb_refine's correspondence gates; no sigma, move or NDT-agreement test); a distinct pose the
+  // priors allow with at least orb_rival_min_inlier_fraction of the fit's refinement inliers is a
+  // rival in the structure margin (not an evaluated rival for margin_known: no NDT result). The
+  // fraction stays low: the copy of the outdoor false fit had 244 inliers against the fit's 334
+  // (another viewpoint), and along the weak direction the structure margin cannot part them, so
+  // this count is what the veto rests on. 0: off.
   int orb_rival_keyframes = 6;
   double orb_rival_spacing_m = 2.0;
   double orb_rival_min_inlier_fraction = 0.5;
@@ -356,9 +367,14 @@ struct RelocalizationResult {
   // Relative margin of the best fine score over the best distinct rival's the priors allow (fine and
   // coarse, the smaller). 1 when rivals were evaluated and none ended distinct from the best.
   double score_margin = 0;
-  int rivals_evaluated = 0;       // rival NDT results the priors allow (distinct or back on the best)
+  int rivals_evaluated =
+      0;  // rival NDT results the priors allow (distinct or back on the best); not ORB rivals
   bool margin_known = false;      // rivals_evaluated > 0; when false the margin is unknown (see step e)
   int verify_keyframes_used = 0;  // prior keyframes the ORB verification checked (seeds excluded)
+  // Step e's ORB rivals of a weak fit (counters.orb_rivals): the most inliers one had, and whether
+  // the rival closest to the best in the structure margin (the level that decided) was one of them.
+  int orb_rival_max_inliers = 0;
+  bool closest_rival_orb = false;
   bool best_from_orb = false;
   int best_orb_inliers = 0;
   int verified_matches = 0;  // ORB verification of the best fit (step e)
