@@ -344,25 +344,6 @@ QueryTruth query_truth(const Prior& prior, const RelocStart& start, const Eigen:
   return q;
 }
 
-// The local map as hwr-robot's RelocalizationWorker sends it (relocalization_worker.cpp, offer):
-// every k-th voxel so that at most max_local_points go, those within local_radius_m of the camera.
-// Without it a long walk's whole map would go, which the robot never sends.
-void crop_as_the_worker(const Eigen::Vector3d& p_world_cam, std::vector<recon::CloudPoint>* local) {
-  const recon::RelocalizationWorkerConfig wc;
-  const Eigen::Vector3f c = p_world_cam.cast<float>();
-  const float r2 = static_cast<float>(wc.local_radius_m * wc.local_radius_m);
-  const int total = static_cast<int>(local->size());
-  const int stride =
-      total > wc.max_local_points ? (total + wc.max_local_points - 1) / wc.max_local_points : 1;
-  size_t n = 0;
-  for (int i = 0; i < total; i += stride) {
-    const recon::CloudPoint& p = (*local)[static_cast<size_t>(i)];
-    if ((Eigen::Vector3f(p.x_m, p.y_m, p.z_m) - c).squaredNorm() > r2) continue;
-    (*local)[n++] = p;
-  }
-  local->resize(n);
-}
-
 // Runs the attempts of `start` for every state until each is localized or the caps are reached.
 // all_attempts: keep trying after a pose (the false-relocalization check: any pose counts).
 core::Status run_start(const Options& o, Prior* prior, recon::Relocalizer* reloc, RelocStart* start,
@@ -379,8 +360,7 @@ core::Status run_start(const Options& o, Prior* prior, recon::Relocalizer* reloc
     if (*k < 0) break;  // the run ended
     const RelocKeyframe& kf = start->keyframe(*k);
     const Eigen::Isometry3d T_world_cam = start->T_start_cam(*k);
-    start->local_map(*k, local);
-    crop_as_the_worker(T_world_cam.translation(), local);
+    start->local_map(*k, T_world_cam.translation(), recon::RelocalizationWorkerConfig{}, local);
     const QueryTruth truth = query_truth(*prior, *start, T_world_cam);
     for (size_t si = 0; si < states->size(); ++si) {
       SetState& s = (*states)[si];

@@ -130,7 +130,9 @@ core::Expected<int> RelocStart::keyframe_at_motion(double moved_m) {
   return -1;
 }
 
-void RelocStart::local_map(int k, std::vector<recon::CloudPoint>* out) {
+void RelocStart::local_map(int k, const Eigen::Vector3d& p_world_cam,
+                           const recon::RelocalizationWorkerConfig& worker,
+                           std::vector<recon::CloudPoint>* out) {
   out->clear();
   if (!voxels_) return;
   if (k < voxels_upto_) {
@@ -153,14 +155,10 @@ void RelocStart::local_map(int k, std::vector<recon::CloudPoint>* out) {
     voxels_->insert(moved.data(), static_cast<int>(moved.size()));
   }
   voxels_upto_ = std::max(voxels_upto_, k);
-  out->reserve(static_cast<size_t>(voxels_->size()));
-  voxels_->for_each([&](const recon::Voxel& v) {
-    recon::CloudPoint p;
-    p.x_m = v.x_m;
-    p.y_m = v.y_m;
-    p.z_m = v.z_m;
-    out->push_back(p);
-  });
+  out->resize(static_cast<size_t>(worker.max_local_points));
+  const int n = recon::gather_local_map(*voxels_, Eigen::Isometry3d::Identity(), p_world_cam,
+                                        worker.local_radius_m, out->data(), worker.max_local_points);
+  out->resize(static_cast<size_t>(n));
 }
 
 void RelocStart::feed(int64_t t_ns, const Eigen::Vector3d& antenna_imu_m, recon::CurrentSensorPriors* priors,

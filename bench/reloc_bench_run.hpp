@@ -24,6 +24,7 @@
 #include "hwr/hal/rgbd_frame.hpp"
 #include "hwr/recon/keyframe_cloud.hpp"
 #include "hwr/recon/relocalization_priors.hpp"
+#include "hwr/recon/relocalization_worker.hpp"
 #include "hwr/recon/voxel_map.hpp"
 #include "hwr/sim/sim_live_log.hpp"
 
@@ -86,8 +87,10 @@ class RelocStart {
   const RelocKeyframe& keyframe(int k) const { return *keyframes_[static_cast<size_t>(k)]; }
   double moved_at(int k) const { return moved_m_[static_cast<size_t>(k)]; }
   Eigen::Isometry3d T_start_cam(int k) const { return T_start_run_ * keyframe(k).T_run_cam; }
-  // The local map of keyframes 0..k (5 cm voxels, start frame), rebuilt into *out.
-  void local_map(int k, std::vector<recon::CloudPoint>* out);
+  // The local map of keyframes 0..k (5 cm voxels, start frame), as RelocalizationWorker sends it
+  // (recon::gather_local_map with `worker`'s radius and cap about p_world_cam), into *out.
+  void local_map(int k, const Eigen::Vector3d& p_world_cam, const recon::RelocalizationWorkerConfig& worker,
+                 std::vector<recon::CloudPoint>* out);
   // Feeds the run's magnetometer samples and 3D GNSS fixes with t in (fed_until, t_ns] to *priors,
   // with the true attitude / antenna position in the start frame. fed_until_ns tracks progress.
   void feed(int64_t t_ns, const Eigen::Vector3d& antenna_imu_m, recon::CurrentSensorPriors* priors,

@@ -167,6 +167,30 @@ RelocalizationWorkerStatus RelocalizationWorker::status() const {
   return status_;
 }
 
+int gather_local_map(const VoxelMap& local_map, const Eigen::Isometry3d& T_world_segment,
+                     const Eigen::Vector3d& c_world_m, double radius_m, CloudPoint* out, int capacity) {
+  const Eigen::Isometry3f T_world_segment_f = T_world_segment.cast<float>();
+  const Eigen::Vector3f c_world = c_world_m.cast<float>();
+  const float r2 = static_cast<float>(radius_m * radius_m);
+  const int total = local_map.size();
+  const int stride = total > capacity ? (total + capacity - 1) / capacity : 1;
+  int n = 0;
+  for (int i = 0; i < total && n < capacity; i += stride) {
+    const Voxel& v = local_map.at_slot(local_map.created(i));
+    const Eigen::Vector3f p = T_world_segment_f * Eigen::Vector3f(v.x_m, v.y_m, v.z_m);
+    if ((p - c_world).squaredNorm() > r2) continue;
+    CloudPoint& q = out[n++];
+    q.x_m = p.x();
+    q.y_m = p.y();
+    q.z_m = p.z();
+    q.r = static_cast<uint8_t>(v.r);
+    q.g = static_cast<uint8_t>(v.g);
+    q.b = static_cast<uint8_t>(v.b);
+    q.flags = 0;
+  }
+  return n;
+}
+
 bool RelocalizationWorker::offer(const estimation::FrameFeatures& features,
                                  const Eigen::Isometry3d& T_world_cam, const VoxelMap& local_map,
                                  const Eigen::Isometry3d& T_world_segment, double moved_m,
@@ -182,30 +206,8 @@ bool RelocalizationWorker::offer(const estimation::FrameFeatures& features,
   T_world_cam_ = T_world_cam;
   moved_m_ = moved_m;
   priors_ = priors;
-  // Voxels near the camera, in the current world frame; every k-th in creation order when there are
-  // more than the copy holds. The count near the camera is not known before the pass, so the stride
-  // comes from the whole map: a conservative (never overfull) choice.
-  const Eigen::Isometry3f T_world_segment_f = T_world_segment.cast<float>();
-  const Eigen::Vector3f c_world = T_world_cam.translation().cast<float>();
-  const float r2 = static_cast<float>(config_.local_radius_m * config_.local_radius_m);
-  const int total = local_map.size();
-  const int cap = static_cast<int>(local_world_.size());
-  const int stride = total > cap ? (total + cap - 1) / cap : 1;
-  int n = 0;
-  for (int i = 0; i < total && n < cap; i += stride) {
-    const Voxel& v = local_map.at_slot(local_map.created(i));
-    const Eigen::Vector3f p = T_world_segment_f * Eigen::Vector3f(v.x_m, v.y_m, v.z_m);
-    if ((p - c_world).squaredNorm() > r2) continue;
-    CloudPoint& q = local_world_[static_cast<size_t>(n++)];
-    q.x_m = p.x();
-    q.y_m = p.y();
-    q.z_m = p.z();
-    q.r = static_cast<uint8_t>(v.r);
-    q.g = static_cast<uint8_t>(v.g);
-    q.b = static_cast<uint8_t>(v.b);
-    q.flags = 0;
-  }
-  local_n_ = n;
+  local_n_ = gather_local_map(local_map, T_world_segment, T_world_cam.translation(), config_.local_radius_m,
+                              local_world_.data(), static_cast<int>(local_world_.size()));
   next_attempt_m_ = moved_m + config_.retry_every_m;
   ++offers_taken_;
   {

@@ -55,6 +55,15 @@ struct RelocalizationWorkerConfig {
   int keyframe_slots = 4;
 };
 
+// The local map a query carries (RelocalizationWorkerConfig::local_radius_m, max_local_points): the
+// voxels of `local_map` (segment frame) within radius_m of c_world_m once moved by T_world_segment,
+// every k-th in creation order, k from the whole map's size so that at most `capacity` fit (the count
+// near the camera is not known before the pass: a conservative, never overfull choice). Writes them to
+// out[0, n) in the world frame and returns n. No allocation (RelocalizationWorker::offer, and
+// hwr-bench reloc, which sends what the robot sends).
+int gather_local_map(const VoxelMap& local_map, const Eigen::Isometry3d& T_world_segment,
+                     const Eigen::Vector3d& c_world_m, double radius_m, CloudPoint* out, int capacity);
+
 // An updated prior segment (a new version) for the map store and the ground station.
 struct UpdatedSegment {
   SegmentRecord record;  // in its segment frame; record.T_world_segment is in the prior frame
