@@ -2,6 +2,7 @@
 
 #if HWR_WITH_SIM
 #include "hwr/sim/renderer.hpp"
+#include "hwr/sim/run_writer.hpp"
 #include "hwr/sim/scenario.hpp"
 #include "hwr/sim/sim_live_log.hpp"
 #endif
@@ -33,6 +34,7 @@ core::Expected<Sequence> open_sequence(const std::string& name, double duration_
   s.path_length_m = live->path_length_m;
   // Scene-frame truth moved into the run's world frame (what hwr-sim writes to weld_groundtruth.yaml).
   const Eigen::Isometry3d T_world_scene = live->calibration.T_scene_world.inverse();
+  s.weld_truth_yaml = sim::weld_groundtruth_yaml(spec.value(), T_world_scene);
   s.weld_truth_world = sim::scene_ground_truth(spec->scene);
   for (auto& p : s.weld_truth_world.plates) {
     p.T_scene_plate = T_world_scene * p.T_scene_plate;

@@ -22,6 +22,7 @@ struct Sequence {
   double path_length_m = 0;
 #if HWR_WITH_SIM
   sim::SceneGroundTruth weld_truth_world;  // plates and seams in the run's world frame
+  std::string weld_truth_yaml;             // the same as hwr-sim's weld_groundtruth.yaml
 #endif
 };
 

@@ -47,7 +47,7 @@ robot_and_ground() {
   trap "kill -TERM $ground 2>/dev/null || true" EXIT
   "$bin/hwr-robot/hwr-robot" --source "sim:$out/sim-lab" --quiet --traj-out "$out/trajectory.txt" \
     --timing-out "$out/timing.csv" --map-out "$out/map-store" --cloud-out "$out/map-cloud.bin" \
-    --link "$url" --robot-id demo-robot | tee "$out/robot-telemetry.txt"
+    --regions truth --link "$url" --robot-id demo-robot | tee "$out/robot-telemetry.txt"
   kill -TERM "$ground"
   wait "$ground"
   trap - EXIT
@@ -67,9 +67,12 @@ echo "== 3/5 evaluation: the estimated trajectory against the simulator's ground
 "$bin/hwr-eval/hwr-eval" ate "$out/sim-lab/groundtruth.txt" "$out/trajectory.txt" | tee "$out/ate.txt"
 
 echo
-echo "== 4/5 evaluation: welding plates fitted in the map against the simulator's ground truth =="
+echo "== 4/5 evaluation: welding plates fitted in the map against the simulator's ground truth: on the"
+echo "       fine clouds of the welding regions (2 mm), then on the coarse map (2 cm voxels) =="
+"$bin/hwr-eval/hwr-eval" ae --groundtruth "$out/sim-lab/weld_groundtruth.yaml" --map "$out/map-store" \
+  --truth-traj "$out/sim-lab/groundtruth.txt" | tee "$out/ae.txt"
 "$bin/hwr-eval/hwr-eval" ae --groundtruth "$out/sim-lab/weld_groundtruth.yaml" --cloud "$out/map-cloud.bin" \
-  --align "$out/sim-lab/groundtruth.txt" "$out/trajectory.txt" | tee "$out/ae.txt"
+  --align "$out/sim-lab/groundtruth.txt" "$out/trajectory.txt" | tee "$out/ae-coarse.txt"
 
 echo
 echo "== 5/5 second visit: the lab later (a plate moved, a box removed), started elsewhere; the robot"
@@ -95,7 +98,9 @@ demo outputs:
       absolute trajectory error against the simulator's ground truth (docs/evaluation.md)
   $out/map-store/
       the map store: closed local maps (segments/seg_NNNNNN: segment.yaml, keyframes.bin,
-      cloud.bin) with their keyframes and ORB + NDT junctions (docs/reconstruction.md)
+      cloud.bin, fine.bin) with their keyframes, ORB + NDT junctions, and the welding regions with
+      their 2 mm fine clouds (the simulator's joints stand in for detections: --regions truth)
+      (docs/reconstruction.md)
   $out/map-cloud.bin
       every segment's points in the world frame (16-byte CloudPoint records)
   $out/ground/demo-robot/<run>/maps/
@@ -103,12 +108,14 @@ demo outputs:
       merged.ply/.pcd (world frame; PCL, Open3D, CloudCompare read them); the chunks as received
       (seg_*/chunk_*.lcm) and their Draco payloads (chunk_*.drc, draco_decoder reads them)
       (docs/mapio.md); $out/ground-summary.txt and ground-log.txt: its report and status lines
-  $out/ae.txt
-      welding-plate reconstruction error (AE) of that map (docs/reconstruction.md)
+  $out/ae.txt, $out/ae-coarse.txt
+      welding-plate reconstruction error (AE) of that map: on the welding regions' fine clouds, and
+      on the coarse map (docs/reconstruction.md)
   $out/revisit-telemetry.txt, $out/revisit-trajectory.txt, $out/revisit-store/
       the second visit: where it relocalized (T_prior_world, attempts, time), its trajectory and
       segments in the first run's frame, relocalization.yaml, and updated first-run segments
       (docs/relocalization.md, docs/prior_map_update.md)
 
-welding-region detection is the next stage (docs/architecture.md).
+welding-region detection (detect/) is the next stage: until it exists the simulator's joints are the
+detections (docs/architecture.md).
 MSG

@@ -3,6 +3,8 @@
 //   hwr-eval rpe GT EST [--delta N] [--delta-unit s|f] [--offset S]
 //   hwr-eval ae --groundtruth RUN/weld_groundtruth.yaml --cloud FILE [--voxel M] [--align GT EST]
 //               [--margin M]
+//   hwr-eval ae --groundtruth RUN/weld_groundtruth.yaml --map DIR --truth-traj GT [--segmented]
+//               (the welding regions' fine clouds of a map store; region_ae_eval.cpp)
 //   hwr-eval map-update --prior P --updated D --groundtruth WELD_YAML --moved NAME[,NAME]
 //   (map_update_eval.cpp)
 // ate/rpe: trajectories (TUM files). ae: welding-plate reconstruction error of a map cloud (the
@@ -23,6 +25,7 @@
 #include "hwr/estimation/trajectory_metrics.hpp"
 #include "hwr/recon/plate_fit.hpp"
 #include "map_update_eval.hpp"
+#include "region_ae_eval.hpp"
 
 namespace {
 
@@ -35,6 +38,7 @@ int usage(const char* msg) {
       "usage: hwr-eval ate GT EST [--max-dt S] [--sim3] [--offset S]\n"
       "       hwr-eval rpe GT EST [--delta N] [--delta-unit s|f] [--offset S]\n"
       "       hwr-eval ae --groundtruth WELD_YAML --cloud FILE [--voxel M] [--align GT EST] [--margin M]\n"
+      "       hwr-eval ae --groundtruth WELD_YAML --map DIR --truth-traj GT [--segmented] [--margin M]\n"
       "       hwr-eval map-update --prior P --updated D --groundtruth WELD_YAML --moved NAME[,NAME] "
       "[--margin M]\n"
       "GT and EST are TUM trajectory files (timestamp tx ty tz qx qy qz qw); FILE is a cloud of\n"
@@ -195,7 +199,11 @@ int main(int argc, char** argv) {
   if (argc < 2 || std::strcmp(argv[1], "--help") == 0 || std::strcmp(argv[1], "-h") == 0)
     return usage(nullptr);
   const std::string cmd = argv[1];
-  if (cmd == "ae") return run_ae(argc, argv);
+  if (cmd == "ae") {
+    for (int i = 2; i < argc; ++i)
+      if (std::strcmp(argv[i], "--map") == 0) return hwr_eval::run_region_ae(argc, argv);
+    return run_ae(argc, argv);
+  }
   if (cmd == "map-update") return hwr_eval::run_map_update(argc, argv);
   if (cmd != "ate" && cmd != "rpe") return usage(("unknown command '" + cmd + "'").c_str());
 

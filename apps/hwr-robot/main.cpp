@@ -43,7 +43,9 @@
 #include "hwr/recon/relocalization_priors.hpp"
 #include "hwr/recon/relocalization_worker.hpp"
 #include "hwr/recon/segment_writer.hpp"
+#include "hwr/recon/truth_weld_regions.hpp"
 #if HWR_WITH_SIM
+#include "hwr/sim/run_writer.hpp"
 #include "hwr/sim/scenario.hpp"
 #include "hwr/sim/sim_live_log.hpp"
 #include "hwr/sim/sim_run_replay.hpp"
@@ -64,6 +66,10 @@ constexpr hwr::core::TaskSpec kTasks[] = {
 };
 enum TaskIndex : size_t { kHal = 0, kInertial, kCamera, kMapping, kTelemetry, kTaskCount };
 
+// --regions truth: a joint is "detected" when its box centre is this far in front of the camera (the
+// fine cloud takes pixels up to 3.5 m, config/map.yaml), and the boxes are the plates' bounds + 5 cm.
+constexpr double kTruthMinRangeM = 0.3, kTruthMaxRangeM = 4.0, kTruthBoxMarginM = 0.05;
+
 // IMU samples newer than this stay queued so a frame still finds the samples around its time.
 constexpr int64_t kImuHoldbackNs = 60'000'000;
 
@@ -75,6 +81,7 @@ struct Args {
   std::string traj_out, timing_out, gt_out, faults, config, ba_export, map_out, cloud_out;
   std::string link, robot_id = "robot1";
   std::string prior_map;
+  std::string regions;  // "truth": the simulator's joints as welding-region detections
   double link_wait_s = 30.0;
   bool use_imu = true, local_ba = true, full_ba = true;
 };
@@ -86,7 +93,7 @@ void usage() {
       "                 [--traj-out FILE] [--timing-out FILE] [--gt-out FILE] [--faults SPEC]\n"
       "                 [--no-imu] [--no-local-ba] [--no-full-ba] [--ba-export FILE]\n"
       "                 [--map-out DIR] [--cloud-out FILE] [--link URL [--robot-id ID] [--link-wait S]]\n"
-      "                 [--prior-map DIR]\n"
+      "                 [--prior-map DIR] [--regions truth]\n"
       "  KIND:WHAT  sim:NAME|FILE.yaml (the simulator renders live), sim:DIR (a run written by hwr-sim),\n"
       "             tum:DIR (TUM RGB-D folder), euroc:DIR (EuRoC folder or mav0)\n"
       "  --config FILE      settings (YAML, sections estimation: and map:; config/estimation.yaml and\n"
@@ -107,7 +114,11 @@ void usage() {
       "  --link-wait S      at the end, wait up to S seconds for the ground station's acks (default 30)\n"
       "  --prior-map DIR    an earlier run's map store (--map-out of that run): relocalize against it while\n"
       "                     moving, then express poses, segments and the streamed map in its frame\n"
-      "                     (docs/relocalization.md)\n");
+      "                     (docs/relocalization.md)\n"
+      "  --regions truth    (sim sources) the simulator's weld joints, seen from each keyframe's true pose,\n"
+      "                     as welding-region detections: the map keeps a fine cloud inside them, placed\n"
+      "                     with the keyframe's estimated pose (a perfect detector until detect/ has one;\n"
+      "                     docs/reconstruction.md)\n");
 }
 
 // Replay paced at sensor rate: the timeline is the source's time, advancing with CLOCK_MONOTONIC.
@@ -149,6 +160,12 @@ struct Robot {
   int last_keyframe = -1;
   Eigen::Vector3d last_keyframe_p = Eigen::Vector3d::Zero();
   int update_offered_upto = -1;  // newest keyframe offered to the map update
+  // --regions truth: the joints' boxes and the true camera poses (time-sorted) the detections come from.
+  const std::vector<hwr::recon::TruthJointBox>* truth_joints = nullptr;
+  const std::vector<hwr::core::StampedPose>* truth_T_world_cam = nullptr;
+  int detected_upto = -1;                          // newest keyframe looked at
+  std::vector<hwr::recon::WeldRegion> detections;  // scratch (sized for every joint at start-up)
+  uint64_t region_detections = 0;
   uint64_t updated_segments = 0, updated_points_deleted = 0, updated_stream_refused = 0;
   hwr::hal::StreamMonitor imu{200.0};
   hwr::hal::StreamMonitor camera{30.0};
@@ -279,8 +296,30 @@ void take_updated_segments(Robot* r) {
   }
 }
 
+// --regions truth: each new keyframe "detects" the joints its true pose sees; the mapper places them
+// with the keyframe's estimated pose (recon/truth_weld_regions.hpp). Before the keyframes are fused.
+void detect_truth_regions(Robot* r) {
+  const hwr::estimation::KeyframeStore& kfs = r->estimator->tracker().keyframes();
+  if (kfs.empty()) return;
+  for (int id = std::max(r->detected_upto + 1, kfs.oldest_id()); id <= kfs.newest_id(); ++id) {
+    const hwr::estimation::Keyframe* kf = kfs.get(id);
+    Eigen::Isometry3d T_world_cam_true;
+    if (kf == nullptr ||
+        !hwr::recon::truth_pose_at(*r->truth_T_world_cam, kf->t_ns, 50'000'000, &T_world_cam_true))
+      continue;
+    hwr::recon::truth_detections(*r->truth_joints, T_world_cam_true, r->source->info().intrinsics,
+                                 kTruthMinRangeM, kTruthMaxRangeM, id, kf->t_ns, &r->detections);
+    for (const hwr::recon::WeldRegion& d : r->detections) {
+      r->mapper->add_weld_region(d, kf->T_world_cam);
+      ++r->region_detections;
+    }
+  }
+  r->detected_upto = std::max(r->detected_upto, kfs.newest_id());
+}
+
 void mapping_task(void* ctx, int64_t) {
   auto* r = static_cast<Robot*>(ctx);
+  if (r->truth_joints != nullptr) detect_truth_regions(r);
   if (r->estimator->local_ba_due()) {
     auto report = r->estimator->run_local_ba();
     if (!report.ok()) HWR_LOG_WARN("robot", "local bundle adjustment: %s", report.status().message().c_str());
@@ -494,7 +533,12 @@ std::string utc_run_id() {
 
 struct OpenedSource {
   hwr::hal::ReplayLog log;
-  std::vector<hwr::core::StampedPose> gt_at_frames;  // sim only
+  std::vector<hwr::core::StampedPose> gt_at_frames;  // sim live only
+  // Sim sources: the weld work pieces (world frame) and the true T_world_cam, time-sorted (at the
+  // frames for a live run, at the IMU rate from groundtruth.txt for a run folder).
+  bool has_weld_truth = false;
+  hwr::recon::WeldGroundTruth weld_truth;
+  std::vector<hwr::core::StampedPose> truth_T_world_cam;
 };
 
 hwr::core::Expected<OpenedSource> open_source(const std::string& spec) {
@@ -506,6 +550,14 @@ hwr::core::Expected<OpenedSource> open_source(const std::string& spec) {
       auto run = hwr::sim::open_sim_run_log(what);
       if (!run.ok()) return run.status();
       out.log = std::move(run->log);
+      // The truth files hwr-sim writes beside the images (absent: --regions truth says so).
+      auto weld = hwr::recon::read_weld_groundtruth(what + "/weld_groundtruth.yaml");
+      auto traj = hwr::core::read_tum_trajectory(what + "/groundtruth.txt");
+      if (weld.ok() && traj.ok()) {
+        out.has_weld_truth = true;
+        out.weld_truth = std::move(weld.value());
+        out.truth_T_world_cam = std::move(traj.value());
+      }
       return out;
     }
     auto scenario = hwr::sim::load_scenario(what);
@@ -514,6 +566,13 @@ hwr::core::Expected<OpenedSource> open_source(const std::string& spec) {
     if (!live.ok()) return live.status();
     out.log = std::move(live->log);
     out.gt_at_frames = std::move(live->groundtruth_T_world_cam_at_frames);
+    auto weld = hwr::recon::parse_weld_groundtruth(
+        hwr::sim::weld_groundtruth_yaml(scenario.value(), live->calibration.T_scene_world.inverse()),
+        scenario->name + " weld ground truth");
+    if (!weld.ok()) return weld.status();
+    out.has_weld_truth = true;
+    out.weld_truth = std::move(weld.value());
+    out.truth_T_world_cam = out.gt_at_frames;
     return out;
 #else
     return hwr::core::Unavailable("this build has no simulator support (HWR_WITH_SIM=OFF)");
@@ -763,6 +822,25 @@ int run(const Args& args) {
   robot.scheduler = &sched;
   robot.estimator = estimator.get();
   robot.mapper = &mapper.value();
+  std::vector<hwr::recon::TruthJointBox> truth_joints;
+  if (args.regions == "truth") {
+    if (!opened->has_weld_truth) {
+      std::fprintf(
+          stderr,
+          "hwr-robot: --regions truth needs a simulator source with its weld ground truth (sim:NAME, "
+          "or sim:DIR holding weld_groundtruth.yaml and groundtruth.txt); %s has none\n",
+          args.source.c_str());
+      return 2;
+    }
+    truth_joints = hwr::recon::truth_joint_boxes(opened->weld_truth, kTruthBoxMarginM);
+    robot.truth_joints = &truth_joints;
+    robot.truth_T_world_cam = &opened->truth_T_world_cam;
+    robot.detections.reserve(truth_joints.size());
+    std::fprintf(stderr,
+                 "hwr-robot: welding regions: the simulator's %zu joints as detections (a perfect detector, "
+                 "placed with the estimated poses)\n",
+                 truth_joints.size());
+  }
   robot.segments = &segments;
   robot.streamer = streamer.get();
   robot.quiet = args.quiet;
@@ -890,6 +968,15 @@ int run(const Args& args) {
                 m.segments_closed, m.points_closed, m.keyframes_fused, m.keyframes_without_images,
                 m.junctions_orb, m.junctions_ndt, m.segments_closed > 0 ? m.segments_closed - 1 : 0);
     for (const auto& line : segments.junction_lines) std::printf("  %s\n", line.c_str());
+    const auto& f = mapper->fine_map().counters();
+    if (f.regions_added + f.detections_invalid + f.regions_refused > 0) {
+      std::printf("map: welding regions=%" PRIu64 " (detections %" PRIu64 ", merged %" PRIu64
+                  ", refused %" PRIu64 ", invalid %" PRIu64 ") fine points merged=%" PRIu64 " in %" PRIu64
+                  " keyframes, fine voxels=%" PRIu64 " (%.0f mm, refused full %" PRIu64 ")\n",
+                  f.regions_added, robot.region_detections, f.detections_merged, f.regions_refused,
+                  f.detections_invalid, f.points_inserted, f.keyframes_in_view, m.fine_points_closed,
+                  map_cfg.fine.voxels.voxel_m * 1e3, mapper->fine_map().fine_map().counters().refused_full);
+    }
     if (store_writer) {
       const auto w = store_writer->counters();
       std::printf("map store: %" PRIu64 " segments written (%" PRIu64 " failed, %" PRIu64 " stalls) -> %s\n",
@@ -1075,6 +1162,12 @@ int main(int argc, char** argv) {
       args.cloud_out = value("--cloud-out");
     } else if (a == "--prior-map") {
       args.prior_map = value("--prior-map");
+    } else if (a == "--regions") {
+      args.regions = value("--regions");
+      if (args.regions != "truth") {
+        std::fprintf(stderr, "hwr-robot: --regions: expected 'truth', got '%s'\n", args.regions.c_str());
+        return 2;
+      }
     } else if (a == "--link") {
       args.link = value("--link");
     } else if (a == "--robot-id") {

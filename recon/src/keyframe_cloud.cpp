@@ -79,7 +79,11 @@ core::Expected<KeyframeCloud> build_keyframe_cloud(const cv::Mat& bgr, const cv:
       const float limit = config.max_depth_step * z;
       const float nb[4] = {row[u > 0 ? u - 1 : u], row[u + 1 < w ? u + 1 : u], up[u], down[u]};
       bool edge = false;
-      for (float q : nb) edge = edge || !valid_depth(q) || std::fabs(q - z) > limit;
+      if (config.edge_keeps_nearer) {
+        for (float q : nb) edge = edge || (valid_depth(q) && z - q > limit);
+      } else {
+        for (float q : nb) edge = edge || !valid_depth(q) || std::fabs(q - z) > limit;
+      }
       if (edge) {
         ++st.edges;
         continue;

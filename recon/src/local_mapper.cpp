@@ -59,11 +59,12 @@ constexpr size_t kStreamBatch = 65'536;  // points per MapStreamSink call at mos
 }  // namespace
 
 LocalMapper::LocalMapper(const LocalMapperConfig& config, const hal::PinholeIntrinsics& K, VoxelMap map,
-                         JunctionAligner junction)
+                         JunctionAligner junction, FineRegionMap fine)
     : config_(config),
       K_(K),
       map_(std::move(map)),
       junction_(std::move(junction)),
+      fine_(std::move(fine)),
       cloud_arena_(
           std::make_unique<core::Arena>(keyframe_cloud_capacity_bytes(K.width, K.height, config.cloud))) {
   for (auto& a : junction_arena_)
@@ -104,7 +105,12 @@ core::Expected<LocalMapper> LocalMapper::create(const LocalMapperConfig& config,
   junction_config.ndt.max_target_points = samples;
   auto junction = JunctionAligner::create(junction_config, max_features);
   if (!junction.ok()) return junction.status();
-  return LocalMapper(config, K, std::move(map.value()), std::move(junction.value()));
+  // A disabled fine map still exists (add_weld_region keeps the regions) but with a token voxel table.
+  FineRegionConfig fine_config = config.fine;
+  if (!fine_config.enabled) fine_config.voxels.max_voxels = 1;
+  auto fine = FineRegionMap::create(fine_config, K);
+  if (!fine.ok()) return core::InvalidArgument("local mapper: " + fine.status().message());
+  return LocalMapper(config, K, std::move(map.value()), std::move(junction.value()), std::move(fine.value()));
 }
 
 void LocalMapper::update(const estimation::KeyframeStore& keyframes, SegmentSink* sink, bool flush) {
@@ -207,6 +213,7 @@ void LocalMapper::fuse(const estimation::KeyframeStore& keyframes, int id, Segme
   }
   segment_.t_last_ns = t_ns;
 
+  fine_.settle(id, T_world_cam);  // regions detected on this keyframe: its settled pose
   if (have_images) {
     cloud_arena_->reset();
     const Eigen::Isometry3d T_segment_cam = segment_.T_world_segment.inverse() * T_world_cam;
@@ -216,6 +223,7 @@ void LocalMapper::fuse(const estimation::KeyframeStore& keyframes, int id, Segme
       map_.insert(c.value());
     else
       ++counters_.cloud_errors;
+    fine_.insert_keyframe(bgr != nullptr ? *bgr : cv::Mat(), *depth, T_world_cam, segment_.T_world_segment);
   } else {
     ++counters_.keyframes_without_images;
   }
@@ -262,6 +270,10 @@ void LocalMapper::close_segment(SegmentSink* sink) {
   segment_.points_segment.reserve(static_cast<size_t>(map_.size()));
   map_.for_each([&](const Voxel& v) { segment_.points_segment.push_back(point_of(v)); });
   counters_.points_closed += segment_.points_segment.size();
+  fine_.take_segment(segment_.T_world_segment, &segment_.fine_points_segment, &segment_.fine_counts,
+                     &segment_.weld_regions);
+  segment_.fine_voxel_m = segment_.fine_points_segment.empty() ? 0.0 : config_.fine.voxels.voxel_m;
+  counters_.fine_points_closed += segment_.fine_points_segment.size();
   ++counters_.segments_closed;
   if (sink != nullptr) sink->take(std::move(segment_));
   segment_ = SegmentRecord();

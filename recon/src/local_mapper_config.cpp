@@ -31,6 +31,16 @@ void read_local_mapper_config(core::ConfigMap map, LocalMapperConfig* c) {
       .get("odometry_sigma_m", &c->junction.odometry_sigma_m)
       .get("orb_covariance_scale", &c->junction.orb_covariance_scale)
       .get("fusion_gate_chi2", &c->junction.fusion_gate_chi2);
+  core::ConfigMap fine = map.child("fine");
+  fine.get("enabled", &c->fine.enabled)
+      .get("voxel_m", &c->fine.voxels.voxel_m)
+      .get("max_voxels", &c->fine.voxels.max_voxels)
+      .get("min_depth_m", &c->fine.cloud.min_depth_m)
+      .get("max_depth_m", &c->fine.cloud.max_depth_m)
+      .get("stride_px", &c->fine.cloud.stride_px)
+      .get("max_depth_step", &c->fine.cloud.max_depth_step)
+      .get("edge_keeps_nearer", &c->fine.cloud.edge_keeps_nearer)
+      .get("max_regions", &c->fine.max_regions);
   if (junction.has("ndt_resolutions_m")) {
     if (resolutions.empty() || resolutions.size() > c->junction.ndt.resolutions_m.size()) {
       junction.record_error("ndt_resolutions_m", "expected 1 to 4 voxel sides, coarse to fine");

@@ -28,13 +28,27 @@ namespace fs = std::filesystem;
 using store_detail::BinExpectation;
 using store_detail::BinHeader;
 using store_detail::ByteSpan;
+using store_detail::FineExpectation;
 
-constexpr uint32_t kStoreFormatVersion = 1;  // store.yaml and segment.yaml
+// store.yaml and segment.yaml. Version 2 added the welding regions: segment.yaml's fine_voxel_m,
+// weld_regions, fine_points, fine_bin_bytes and fine_bin_crc32, and the segment's fine.bin.
+//   - A segment.yaml of version 1 has none of those keys (they are unknown keys there) and no
+//     fine.bin; it reads with empty fine data. Version 2 requires the keys and the file.
+//   - store.yaml is written once, when the store is created, with the version of the build that
+//     created it; it does not change when segments are added. This build creates stores at version
+//     2, opens stores of version 1 and 2, and writes every new segment at version 2, also into a
+//     version-1 store (store.yaml's own content is the same in both versions). Each segment.yaml
+//     carries its own version, and a reader checks that one: a build older than the segment refuses
+//     it (kInvalidArgument, "newer than this build reads"), never misreads it.
+//   - Anything newer than this build's version, store.yaml or segment.yaml, is refused.
+constexpr uint32_t kStoreFormatVersion = 2;
+constexpr uint32_t kFirstFineFormatVersion = 2;  // segments from this version on have fine.bin
 constexpr char kStoreYaml[] = "store.yaml";
 constexpr char kSegmentsDir[] = "segments";
 constexpr char kSegmentYaml[] = "segment.yaml";
 constexpr char kKeyframesBin[] = "keyframes.bin";
 constexpr char kCloudBin[] = "cloud.bin";
+constexpr char kFineBin[] = "fine.bin";
 constexpr char kTmpPrefix[] = ".tmp-";
 // segment.yaml ends with this key; its value is the CRC32 of every byte before the line, so a
 // flipped digit in a pose is caught like one in the binary files.
@@ -194,8 +208,10 @@ core::Status remove_temporaries(const std::string& dir) {
 
 // ---- store.yaml ----
 
+// A new store is created at kStoreFormatVersion whatever the argument's format_version (its
+// default is 1), as long as that is not newer than this build.
 core::Status validate_metadata(const StoreMetadata& m) {
-  if (m.format_version != kStoreFormatVersion) {
+  if (m.format_version < 1 || m.format_version > kStoreFormatVersion) {
     return core::InvalidArgument("map store: this build writes format_version " +
                                  std::to_string(kStoreFormatVersion) + ", metadata asks for " +
                                  std::to_string(m.format_version));
@@ -287,15 +303,19 @@ core::Expected<StoreMetadata> read_store_yaml(const std::string& path) {
 // ---- segment.yaml ----
 
 struct SegmentYaml {
-  SegmentRecord record;  // everything but keyframes and points
+  SegmentRecord record;  // everything but keyframes, points and the fine data (fine_voxel_m included)
+  uint32_t format_version = 0;
   uint32_t keyframes = 0;
   uint64_t points = 0;
-  uint64_t keyframes_bin_bytes = 0, cloud_bin_bytes = 0;
-  uint32_t keyframes_bin_crc32 = 0, cloud_bin_crc32 = 0;
+  uint32_t weld_regions = 0;  // format 2 on; 0 before
+  uint64_t fine_points = 0;
+  uint64_t keyframes_bin_bytes = 0, cloud_bin_bytes = 0, fine_bin_bytes = 0;
+  uint32_t keyframes_bin_crc32 = 0, cloud_bin_crc32 = 0, fine_bin_crc32 = 0;
 };
 
 std::string segment_yaml_text(const SegmentRecord& s, uint64_t keyframes_bin_bytes, uint32_t keyframes_crc32,
-                              uint64_t cloud_bin_bytes, uint32_t cloud_crc32) {
+                              uint64_t cloud_bin_bytes, uint32_t cloud_crc32, uint64_t fine_bin_bytes,
+                              uint32_t fine_crc32) {
   const JunctionRecord& j = s.junction;
   std::string t = "# hwr-perception map store segment: written once, never modified\n";
   appendf(&t, "format_version: %" PRIu32 "\n", kStoreFormatVersion);
@@ -304,6 +324,8 @@ std::string segment_yaml_text(const SegmentRecord& s, uint64_t keyframes_bin_byt
   t += "travelled_m: " + yaml_double(s.travelled_m) + "\n";
   appendf(&t, "t_first_ns: %" PRId64 "\nt_last_ns: %" PRId64 "\n", s.t_first_ns, s.t_last_ns);
   appendf(&t, "keyframes: %zu\npoints: %zu\n", s.keyframes.size(), s.points_segment.size());
+  t += "fine_voxel_m: " + yaml_double(s.fine_voxel_m) + "\n";
+  appendf(&t, "weld_regions: %zu\nfine_points: %zu\n", s.weld_regions.size(), s.fine_points_segment.size());
   t += "junction:\n";
   appendf(&t, "  valid: %s\n", j.valid ? "true" : "false");
   appendf(&t, "  keyframe_before: %" PRId32 "\n  keyframe_after: %" PRId32 "\n", j.keyframe_before,
@@ -319,6 +341,7 @@ std::string segment_yaml_text(const SegmentRecord& s, uint64_t keyframes_bin_byt
   appendf(&t, "keyframes_bin_bytes: %" PRIu64 "\nkeyframes_bin_crc32: %" PRIu32 "\n", keyframes_bin_bytes,
           keyframes_crc32);
   appendf(&t, "cloud_bin_bytes: %" PRIu64 "\ncloud_bin_crc32: %" PRIu32 "\n", cloud_bin_bytes, cloud_crc32);
+  appendf(&t, "fine_bin_bytes: %" PRIu64 "\nfine_bin_crc32: %" PRIu32 "\n", fine_bin_bytes, fine_crc32);
   appendf(&t, "%s: %" PRIu32 "  # CRC32 of every byte above this line\n", kSelfCrcKey,
           store_detail::crc32_bytes(t.data(), t.size()));
   return t;
@@ -355,13 +378,14 @@ core::Expected<SegmentYaml> read_segment_yaml(const std::string& path) {
   read_u32(root, kSelfCrcKey, &self_crc);
   SegmentYaml y;
   SegmentRecord& s = y.record;
-  uint32_t version = 0;
+  uint32_t& version = y.format_version;
   read_u32(root, "format_version", &version);
   if (version > kStoreFormatVersion) {
     return core::InvalidArgument(path + ": format_version " + std::to_string(version) +
                                  " is newer than this build reads (" + std::to_string(kStoreFormatVersion) +
                                  ")");
   }
+  if (root.has("format_version") && version < 1) root.record_error("format_version", "must be at least 1");
   read_u32(root, "segment_id", &s.segment_id);
   read_pose(root, "T_world_segment", &s.T_world_segment);
   root.require("travelled_m", &s.travelled_m);
@@ -387,6 +411,18 @@ core::Expected<SegmentYaml> read_segment_yaml(const std::string& path) {
   read_u32(root, "keyframes_bin_crc32", &y.keyframes_bin_crc32);
   root.require("cloud_bin_bytes", &y.cloud_bin_bytes);
   read_u32(root, "cloud_bin_crc32", &y.cloud_bin_crc32);
+  // Format 2: the welding regions. Absent from a version-1 file (there they are unknown keys, which
+  // finish() reports).
+  if (version >= kFirstFineFormatVersion) {
+    root.require("fine_voxel_m", &s.fine_voxel_m);
+    if (root.has("fine_voxel_m") && !(std::isfinite(s.fine_voxel_m) && s.fine_voxel_m >= 0)) {
+      root.record_error("fine_voxel_m", "must be finite and >= 0");
+    }
+    read_u32(root, "weld_regions", &y.weld_regions);
+    root.require("fine_points", &y.fine_points);
+    root.require("fine_bin_bytes", &y.fine_bin_bytes);
+    read_u32(root, "fine_bin_crc32", &y.fine_bin_crc32);
+  }
   HWR_RETURN_IF_ERROR(finish_as_parse_error(*doc));
   return y;
 }
@@ -438,7 +474,9 @@ core::Expected<MapStore> MapStore::open(const std::string& dir, const StoreMetad
                              " segments; restore store.yaml rather than starting a new store over them");
   }
   HWR_RETURN_IF_ERROR(validate_metadata(metadata));
-  const std::string text = store_yaml_text(metadata);
+  StoreMetadata created = metadata;
+  created.format_version = kStoreFormatVersion;  // see kStoreFormatVersion
+  const std::string text = store_yaml_text(created);
   const std::string tmp = join(dir, kTmpPrefix) + "store.yaml-" + std::to_string(::getpid());
   const ByteSpan span{text.data(), text.size()};
   core::Status st = store_detail::write_file_synced(tmp, &span, 1);
@@ -455,7 +493,7 @@ core::Expected<MapStore> MapStore::open(const std::string& dir, const StoreMetad
     const fs::path parent = fs::absolute(fs::path(dir), ec).parent_path();
     if (!ec) (void)core::fsync_directory(parent.string());
   }
-  return MapStore(dir, metadata);
+  return MapStore(dir, std::move(created));
 }
 
 core::Expected<MapStore> MapStore::open_existing(const std::string& dir) {
@@ -484,11 +522,17 @@ core::Status MapStore::write_segment(const SegmentRecord& segment) {
   uint32_t kf_crc = 0;
   HWR_RETURN_IF_ERROR(store_detail::encode_keyframes(segment.keyframes, metadata_.descriptor_bytes,
                                                      &kf_header, &kf_payload, &kf_crc));
+  BinHeader fine_header{};
+  std::vector<uint8_t> fine_payload;
+  uint32_t fine_crc = 0;
+  HWR_RETURN_IF_ERROR(store_detail::encode_fine(segment, &fine_header, &fine_payload, &fine_crc));
   uint32_t cloud_crc = 0;
   const BinHeader cloud_header = store_detail::encode_cloud_header(segment.points_segment, &cloud_crc);
   const uint64_t kf_bytes = kf_header.size() + kf_payload.size();
   const uint64_t cloud_bytes = cloud_header.size() + segment.points_segment.size() * sizeof(CloudPoint);
-  const std::string yaml = segment_yaml_text(segment, kf_bytes, kf_crc, cloud_bytes, cloud_crc);
+  const uint64_t fine_bytes = fine_header.size() + fine_payload.size();
+  const std::string yaml =
+      segment_yaml_text(segment, kf_bytes, kf_crc, cloud_bytes, cloud_crc, fine_bytes, fine_crc);
 
   const std::string tmp = segments + "/" + kTmpPrefix + name + "-" + std::to_string(::getpid());
   std::error_code ec;
@@ -503,6 +547,9 @@ core::Status MapStore::write_segment(const SegmentRecord& segment) {
         {cloud_header.data(), cloud_header.size()},
         {segment.points_segment.data(), segment.points_segment.size() * sizeof(CloudPoint)}};
     HWR_RETURN_IF_ERROR(store_detail::write_file_synced(join(tmp, kCloudBin), cloud_spans, 2));
+    const ByteSpan fine_spans[] = {{fine_header.data(), fine_header.size()},
+                                   {fine_payload.data(), fine_payload.size()}};
+    HWR_RETURN_IF_ERROR(store_detail::write_file_synced(join(tmp, kFineBin), fine_spans, 2));
     const ByteSpan yaml_span{yaml.data(), yaml.size()};
     HWR_RETURN_IF_ERROR(store_detail::write_file_synced(join(tmp, kSegmentYaml), &yaml_span, 1));
     HWR_RETURN_IF_ERROR(core::fsync_directory(tmp));
@@ -543,7 +590,7 @@ core::Expected<std::vector<SegmentSummary>> MapStore::list_segments() const {
     s.segment_id = id;
     s.keyframes = static_cast<int>(std::min<uint32_t>(y->keyframes, std::numeric_limits<int>::max()));
     s.points = static_cast<int64_t>(std::min<uint64_t>(y->points, std::numeric_limits<int64_t>::max()));
-    for (const char* f : {kSegmentYaml, kKeyframesBin, kCloudBin}) {
+    for (const char* f : {kSegmentYaml, kKeyframesBin, kCloudBin, kFineBin}) {  // no fine.bin before format 2
       uint64_t bytes = 0;
       if (store_detail::file_size_bytes(join(seg_dir, f), &bytes)) s.bytes += bytes;
     }
@@ -579,11 +626,19 @@ core::Expected<SegmentRecord> MapStore::read_segment_files(uint32_t segment_id, 
   HWR_RETURN_IF_ERROR(store_detail::read_keyframes_file(kf_path, metadata_.descriptor_bytes,
                                                         BinExpectation{y->keyframes, y->keyframes_bin_crc32},
                                                         &out.keyframes));
+  // The index (read_keyframes) has fine_voxel_m from segment.yaml but opens neither cloud.bin nor
+  // fine.bin.
   if (!with_cloud) return out;
   const std::string cloud_path = join(seg_dir, kCloudBin);
   HWR_RETURN_IF_ERROR(check_file_size(cloud_path, y->cloud_bin_bytes));
   HWR_RETURN_IF_ERROR(store_detail::read_cloud_file(cloud_path, BinExpectation{y->points, y->cloud_bin_crc32},
                                                     &out.points_segment));
+  if (y->format_version < kFirstFineFormatVersion) return out;  // no fine data: the vectors stay empty
+  const std::string fine_path = join(seg_dir, kFineBin);
+  HWR_RETURN_IF_ERROR(check_file_size(fine_path, y->fine_bin_bytes));
+  HWR_RETURN_IF_ERROR(store_detail::read_fine_file(
+      fine_path, FineExpectation{y->weld_regions, y->fine_points, y->fine_bin_crc32, out.fine_voxel_m},
+      &out.weld_regions, &out.fine_points_segment, &out.fine_counts));
   return out;
 }
 

@@ -2,11 +2,14 @@
 
 #include <zlib.h>
 
+#include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <limits>
 #include <type_traits>
 
+#include "hwr/core/se3.hpp"
 #include "map_store_files.hpp"
 
 namespace hwr::recon::store_detail {
@@ -18,9 +21,13 @@ static_assert(
 static_assert(sizeof(CloudPoint) == kCloudPointBytes && std::is_trivially_copyable<CloudPoint>::value,
               "cloud.bin stores CloudPoint's bytes as they are");
 static_assert(offsetof(CloudPoint, r) == 12 && offsetof(CloudPoint, flags) == 15, "CloudPoint layout");
+static_assert(kFinePointBytes == kCloudPointBytes + sizeof(uint32_t), "fine.bin: a CloudPoint and its count");
+static_assert(kWeldRegionLabelBytes == 32, "fine.bin's region record holds a 32-byte label");
+static_assert(sizeof(WeldRegionSource) == 1, "fine.bin stores the source as one byte");
 
 constexpr char kKeyframesMagic[8] = {'H', 'W', 'R', 'K', 'F', '0', '0', '1'};
 constexpr char kCloudMagic[8] = {'H', 'W', 'R', 'P', 'C', '0', '0', '1'};
+constexpr char kFineMagic[8] = {'H', 'W', 'R', 'F', 'N', '0', '0', '1'};
 constexpr size_t kHeaderCrcOffset = 44;
 
 template <class T>
@@ -111,13 +118,16 @@ core::Status check_header(const std::string& path, const ReadFile& file, const c
   return core::Status::Ok();
 }
 
-core::Status check_payload_crc(const std::string& path, const uint8_t* payload, size_t n, uint32_t stored) {
-  const uint32_t crc = crc32_bytes(payload, n);
-  if (crc != stored) {
+core::Status compare_payload_crc(const std::string& path, uint32_t computed, uint32_t stored) {
+  if (computed != stored) {
     return core::CorruptData(path + ": payload CRC32 mismatch (stored " + hex32(stored) + ", computed " +
-                             hex32(crc) + "); the file is corrupt");
+                             hex32(computed) + "); the file is corrupt");
   }
   return core::Status::Ok();
+}
+
+core::Status check_payload_crc(const std::string& path, const uint8_t* payload, size_t n, uint32_t stored) {
+  return compare_payload_crc(path, crc32_bytes(payload, n), stored);
 }
 
 core::Status check_expectation(const std::string& path, const char* what, uint64_t count,
@@ -132,6 +142,83 @@ core::Status check_expectation(const std::string& path, const char* what, uint64
   }
   return core::Status::Ok();
 }
+
+// ---- fine.bin's records: the checks the writer and the reader share ----
+
+bool known_source(WeldRegionSource source) {
+  switch (source) {  // no default: -Wswitch flags a new source that fine.bin would not accept
+    case WeldRegionSource::kModel:
+    case WeldRegionSource::kGeometry:
+    case WeldRegionSource::kOperator:
+    case WeldRegionSource::kSimTruth:
+      return true;
+  }
+  return false;
+}
+
+std::string g17(double v) {
+  char buf[40];
+  std::snprintf(buf, sizeof(buf), "%.17g", v);
+  return buf;
+}
+
+// Empty when fine.bin can hold the region; else what is wrong with it, as a phrase.
+std::string weld_region_problem(const StoredWeldRegion& s) {
+  const WeldRegion& r = s.region;
+  if (!known_source(r.source)) {
+    return "source " + std::to_string(static_cast<unsigned>(r.source)) +
+           " is not a WeldRegionSource (0 model, 1 geometry, 2 operator, 3 sim-truth)";
+  }
+  if (std::find(r.label.begin(), r.label.end(), '\0') == r.label.end()) {
+    return "label is not NUL-terminated within its " + std::to_string(kWeldRegionLabelBytes) + " bytes";
+  }
+  std::string problem = core::rigid_transform_problem(r.T_cam_region);
+  if (!problem.empty()) return "T_cam_region " + problem;
+  problem = core::rigid_transform_problem(s.T_segment_region);
+  if (!problem.empty()) return "T_segment_region " + problem;
+  for (int i = 0; i < 3; ++i) {
+    if (!(std::isfinite(r.half_size_m[i]) && r.half_size_m[i] > 0)) {
+      return "half_size_m (" + g17(r.half_size_m[0]) + ", " + g17(r.half_size_m[1]) + ", " +
+             g17(r.half_size_m[2]) + ") must be positive and finite";
+    }
+  }
+  if (s.fine_points < 0) return "fine_points is negative (" + std::to_string(s.fine_points) + ")";
+  if (!s.viewpoint_segment.allFinite()) return "viewpoint_segment is not finite";
+  return "";
+}
+
+// nullptr when fine.bin can hold the fine point; else what is wrong with it (no allocation: the
+// reader asks for every point).
+const char* fine_point_problem(const CloudPoint& p, uint32_t count) {
+  if (!std::isfinite(p.x_m) || !std::isfinite(p.y_m) || !std::isfinite(p.z_m)) {
+    return "has a non-finite coordinate";
+  }
+  if (count == 0) return "has count 0 (a fine voxel merges at least one point)";
+  return nullptr;
+}
+
+std::string region_name(size_t index, uint32_t id) {
+  return "weld region " + std::to_string(index) + " (id " + std::to_string(id) + ")";
+}
+
+void put_region(uint8_t* p, const StoredWeldRegion& s) {
+  const WeldRegion& r = s.region;
+  put<uint32_t>(p, 0, r.id);
+  p[4] = static_cast<uint8_t>(r.source);
+  p[5] = p[6] = p[7] = 0;
+  put<float>(p, 8, r.confidence);
+  std::memcpy(p + 12, r.label.data(), kWeldRegionLabelBytes);
+  put<int32_t>(p, 44, r.keyframe_id);
+  put<int64_t>(p, 48, r.t_ns);
+  put_pose(p, 56, r.T_cam_region);
+  for (int i = 0; i < 3; ++i) put<double>(p, 152 + 8 * static_cast<size_t>(i), r.half_size_m[i]);
+  put_pose(p, 176, s.T_segment_region);
+  put<int64_t>(p, 272, s.fine_points);
+  for (int i = 0; i < 3; ++i) put<double>(p, 280 + 8 * static_cast<size_t>(i), s.viewpoint_segment[i]);
+}
+
+// Fine points read (and CRC'ed) per chunk: the payload is never held twice in memory.
+constexpr uint64_t kFineChunkPoints = 4096;
 
 }  // namespace
 
@@ -207,6 +294,58 @@ BinHeader encode_cloud_header(const std::vector<CloudPoint>& points, uint32_t* p
   *payload_crc32 = crc32_bytes(points.data(), payload_bytes);
   return make_header(kCloudMagic, static_cast<uint32_t>(kCloudPointBytes), 0, points.size(), payload_bytes,
                      *payload_crc32);
+}
+
+core::Status encode_fine(const SegmentRecord& segment, BinHeader* header, std::vector<uint8_t>* payload,
+                         uint32_t* payload_crc32) {
+  const std::string where = "map store: segment " + std::to_string(segment.segment_id) + ": ";
+  const std::vector<StoredWeldRegion>& regions = segment.weld_regions;
+  const std::vector<CloudPoint>& points = segment.fine_points_segment;
+  const std::vector<uint32_t>& counts = segment.fine_counts;
+  if (counts.size() != points.size()) {
+    return core::InvalidArgument(where + "fine_counts has " + std::to_string(counts.size()) +
+                                 " entries for " + std::to_string(points.size()) +
+                                 " fine points (the two vectors are parallel)");
+  }
+  if (!std::isfinite(segment.fine_voxel_m) || segment.fine_voxel_m < 0) {
+    return core::InvalidArgument(where + "fine_voxel_m must be finite and >= 0, got " +
+                                 g17(segment.fine_voxel_m));
+  }
+  if (!points.empty() && !(segment.fine_voxel_m > 0)) {
+    return core::InvalidArgument(where + std::to_string(points.size()) +
+                                 " fine points need fine_voxel_m > 0, got " + g17(segment.fine_voxel_m));
+  }
+  if (regions.size() > std::numeric_limits<uint32_t>::max()) {
+    return core::InvalidArgument(where + "too many weld regions in one segment");
+  }
+  for (size_t i = 0; i < regions.size(); ++i) {
+    const std::string problem = weld_region_problem(regions[i]);
+    if (!problem.empty()) {
+      return core::InvalidArgument(where + region_name(i, regions[i].region.id) + ": " + problem);
+    }
+  }
+  for (size_t i = 0; i < points.size(); ++i) {
+    if (const char* problem = fine_point_problem(points[i], counts[i])) {
+      return core::InvalidArgument(where + "fine point " + std::to_string(i) + " " + problem);
+    }
+  }
+  const uint64_t region_bytes = regions.size() * kWeldRegionRecordBytes;
+  const uint64_t payload_bytes = region_bytes + points.size() * kFinePointBytes;
+  payload->assign(payload_bytes, 0);
+  uint8_t* p = payload->data();
+  for (const StoredWeldRegion& r : regions) {
+    put_region(p, r);
+    p += kWeldRegionRecordBytes;
+  }
+  for (size_t i = 0; i < points.size(); ++i) {
+    std::memcpy(p, &points[i], kCloudPointBytes);
+    put<uint32_t>(p, kCloudPointBytes, counts[i]);
+    p += kFinePointBytes;
+  }
+  *payload_crc32 = crc32_bytes(payload->data(), payload->size());
+  *header = make_header(kFineMagic, static_cast<uint32_t>(kFinePointBytes),
+                        static_cast<uint32_t>(regions.size()), points.size(), payload_bytes, *payload_crc32);
+  return core::Status::Ok();
 }
 
 core::Status read_keyframes_file(const std::string& path, int descriptor_bytes, const BinExpectation& expect,
@@ -314,6 +453,102 @@ core::Status read_cloud_file(const std::string& path, const BinExpectation& expe
   HWR_RETURN_IF_ERROR(
       check_payload_crc(path, reinterpret_cast<const uint8_t*>(points.data()), payload_bytes, stored_crc));
   *out = std::move(points);
+  return core::Status::Ok();
+}
+
+core::Status read_fine_file(const std::string& path, const FineExpectation& expect,
+                            std::vector<StoredWeldRegion>* regions_out, std::vector<CloudPoint>* points_out,
+                            std::vector<uint32_t>* counts_out) {
+  ReadFile file;
+  HWR_RETURN_IF_ERROR(ReadFile::open(path, &file));
+  BinHeader h{};
+  uint64_t payload_bytes = 0;
+  HWR_RETURN_IF_ERROR(check_header(path, file, kFineMagic, &h, &payload_bytes));
+  const uint32_t point_bytes = get<uint32_t>(h.data(), 16);
+  const uint64_t n_regions = get<uint32_t>(h.data(), 20);
+  const uint64_t n_points = get<uint64_t>(h.data(), 24);
+  const uint32_t stored_crc = get<uint32_t>(h.data(), 40);
+  if (point_bytes != kFinePointBytes) {
+    return core::CorruptData(path + ": " + std::to_string(point_bytes) + " bytes per fine point, expected " +
+                             std::to_string(kFinePointBytes));
+  }
+  // Counts against the payload size, overflow-free (n_regions < 2^32, so region_bytes < 2^41).
+  const uint64_t region_bytes = n_regions * kWeldRegionRecordBytes;
+  if (region_bytes > payload_bytes || n_points > (payload_bytes - region_bytes) / kFinePointBytes ||
+      region_bytes + n_points * kFinePointBytes != payload_bytes) {
+    return core::CorruptData(path + ": header counts (" + std::to_string(n_regions) + " weld regions, " +
+                             std::to_string(n_points) + " fine points) do not match its " +
+                             std::to_string(payload_bytes) + " payload bytes");
+  }
+  if (n_regions != expect.regions) {
+    return core::CorruptData(path + ": header holds " + std::to_string(n_regions) +
+                             " weld regions, segment.yaml says " + std::to_string(expect.regions));
+  }
+  HWR_RETURN_IF_ERROR(check_expectation(path, "fine points", n_points, stored_crc,
+                                        BinExpectation{expect.points, expect.payload_crc32}));
+  if (n_points > 0 && !(expect.fine_voxel_m > 0)) {
+    return core::CorruptData(path + ": " + std::to_string(n_points) + " fine points, but segment.yaml's " +
+                             "fine_voxel_m is " + g17(expect.fine_voxel_m) +
+                             " (must be > 0 with fine points)");
+  }
+
+  // Everything below is bounded by the real file length.
+  std::vector<uint8_t> region_bytes_read(region_bytes);
+  HWR_RETURN_IF_ERROR(file.read_at(kBinHeaderBytes, region_bytes_read.data(), region_bytes_read.size()));
+  uint32_t crc = crc32_bytes(region_bytes_read.data(), region_bytes_read.size());
+  std::vector<CloudPoint> points(n_points);
+  std::vector<uint32_t> counts(n_points);
+  std::vector<uint8_t> chunk(std::min(n_points, kFineChunkPoints) * kFinePointBytes);
+  // The first bad point, reported only once the CRC has shown the bytes are the ones written.
+  uint64_t bad_point = 0;
+  const char* point_problem = nullptr;
+  uint64_t offset = kBinHeaderBytes + region_bytes;
+  for (uint64_t i = 0; i < n_points;) {
+    const uint64_t n = std::min(kFineChunkPoints, n_points - i);
+    HWR_RETURN_IF_ERROR(file.read_at(offset, chunk.data(), n * kFinePointBytes));
+    crc = crc32_bytes(chunk.data(), n * kFinePointBytes, crc);
+    for (uint64_t k = 0; k < n; ++k) {
+      const uint8_t* p = chunk.data() + k * kFinePointBytes;
+      std::memcpy(&points[i + k], p, kCloudPointBytes);
+      counts[i + k] = get<uint32_t>(p, kCloudPointBytes);
+      if (point_problem == nullptr) {
+        point_problem = fine_point_problem(points[i + k], counts[i + k]);
+        bad_point = i + k;
+      }
+    }
+    offset += n * kFinePointBytes;
+    i += n;
+  }
+  HWR_RETURN_IF_ERROR(compare_payload_crc(path, crc, stored_crc));
+
+  std::vector<StoredWeldRegion> regions(n_regions);
+  for (uint64_t i = 0; i < n_regions; ++i) {
+    const uint8_t* p = region_bytes_read.data() + i * kWeldRegionRecordBytes;
+    StoredWeldRegion& s = regions[i];
+    WeldRegion& r = s.region;
+    r.id = get<uint32_t>(p, 0);
+    if (p[5] != 0 || p[6] != 0 || p[7] != 0) {
+      return core::CorruptData(path + ": " + region_name(i, r.id) + ": padding bytes 5..7 are not zero");
+    }
+    r.source = static_cast<WeldRegionSource>(p[4]);
+    r.confidence = get<float>(p, 8);
+    std::memcpy(r.label.data(), p + 12, kWeldRegionLabelBytes);
+    r.keyframe_id = get<int32_t>(p, 44);
+    r.t_ns = get<int64_t>(p, 48);
+    r.T_cam_region = get_pose(p, 56);
+    for (int k = 0; k < 3; ++k) r.half_size_m[k] = get<double>(p, 152 + 8 * static_cast<size_t>(k));
+    s.T_segment_region = get_pose(p, 176);
+    s.fine_points = get<int64_t>(p, 272);
+    for (int k = 0; k < 3; ++k) s.viewpoint_segment[k] = get<double>(p, 280 + 8 * static_cast<size_t>(k));
+    const std::string problem = weld_region_problem(s);
+    if (!problem.empty()) return core::CorruptData(path + ": " + region_name(i, r.id) + ": " + problem);
+  }
+  if (point_problem != nullptr) {
+    return core::CorruptData(path + ": fine point " + std::to_string(bad_point) + " " + point_problem);
+  }
+  *regions_out = std::move(regions);
+  *points_out = std::move(points);
+  *counts_out = std::move(counts);
   return core::Status::Ok();
 }
 

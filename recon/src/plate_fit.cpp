@@ -1,5 +1,7 @@
 #include "hwr/recon/plate_fit.hpp"
 
+#include "plate_edge_rays.hpp"
+
 #include <algorithm>
 #include <cctype>
 #include <cmath>
@@ -364,6 +366,11 @@ double invert_centroid(const Polygon& P, const Vec2& n2, double s_obs, double w)
   return 0.5 * (lo + hi);
 }
 
+// A weight sum reported as a count (PlateFit's point counts): rounded, saturating at INT_MAX.
+int rounded_count(double w) {
+  return static_cast<int>(std::min(std::round(w), static_cast<double>(std::numeric_limits<int>::max())));
+}
+
 struct EdgeSample {
   double t = 0;  // position along the edge
   double d = 0;  // edge offset along its outward normal
@@ -374,7 +381,8 @@ struct EdgeLine {
   bool ok = false;
   double offset = 0;  // at t = 0
   double slope = 0;   // dd/dt
-  int used = 0;
+  int used = 0;       // samples (points: their total weight, rounded)
+  double weight = 0;  // total weight of the samples (points: of the points; voxels: their number)
 };
 
 double median_of(std::vector<double> v) {
@@ -402,6 +410,7 @@ EdgeLine fit_edge_line(const std::vector<EdgeSample>& samples, int min_samples) 
     if (n < std::max(1, min_samples) || sw <= 0) {
       line.ok = false;
       line.used = n;
+      line.weight = n;
       return line;
     }
     const double det = sw * stt - st * st;
@@ -414,6 +423,7 @@ EdgeLine fit_edge_line(const std::vector<EdgeSample>& samples, int min_samples) 
     }
     line.ok = true;
     line.used = n;
+    line.weight = n;
     if (pass == 2) break;
     std::vector<double> abs_r;
     for (size_t i = 0; i < samples.size(); ++i)
@@ -467,25 +477,27 @@ const Vec2 kEdgeTangent[4] = {Vec2(0, 1), Vec2(-1, 0), Vec2(0, -1), Vec2(1, 0)};
 // under a fifth of the band's typical count): a surface a little past the edge (the bench a plate
 // thickness below a web's foot) is a separate cluster, and counting it would pull the edge out,
 // further each update. (Voxel means come in rows a voxel apart; their face test does this instead.)
-EdgeLine band_mean_edge(const std::vector<Vec2>& r, int k, double e, double B, double B_out,
-                        double half_tangent, double corner_margin, int min_points, bool find_gap) {
+// Every count (the histogram, the band's points) and sum is over the points' weights (pw[i] of r[i]).
+EdgeLine band_mean_edge(const std::vector<Vec2>& r, const std::vector<double>& pw, int k, double e, double B,
+                        double B_out, double half_tangent, double corner_margin, int min_points,
+                        bool find_gap) {
   constexpr int kGapBins = 3;
   EdgeLine line;
   const double t_lim = half_tangent - corner_margin;
   if (!(t_lim > 0)) return line;
   const double lo = e - B, bin = 0.1 * B;
   const int n_bins = static_cast<int>(std::ceil((B + B_out) / bin));
-  std::vector<int> hist(static_cast<size_t>(n_bins), 0);
-  for (const Vec2& p : r) {
-    const double s = kEdgeNormal[k].dot(p);
-    const double t = kEdgeTangent[k].dot(p);
+  std::vector<double> hist(static_cast<size_t>(n_bins), 0.0);
+  for (size_t i = 0; i < r.size(); ++i) {
+    const double s = kEdgeNormal[k].dot(r[i]);
+    const double t = kEdgeTangent[k].dot(r[i]);
     if (t < -t_lim || t > t_lim || s < lo || s > e + B_out) continue;
-    ++hist[static_cast<size_t>(std::min(n_bins - 1, static_cast<int>((s - lo) / bin)))];
+    hist[static_cast<size_t>(std::min(n_bins - 1, static_cast<int>((s - lo) / bin)))] += pw[i];
   }
   double hi = e + B_out;
-  std::vector<int> inner(hist.begin(), hist.begin() + 5);  // [e - B, e - B / 2)
+  std::vector<double> inner(hist.begin(), hist.begin() + 5);  // [e - B, e - B / 2)
   std::nth_element(inner.begin(), inner.begin() + 2, inner.end());
-  const int level = inner[2];
+  const double level = inner[2];
   if (find_gap && level >= 5) {
     int run = 0;
     for (int i = 5; i < n_bins; ++i) {
@@ -496,20 +508,22 @@ EdgeLine band_mean_edge(const std::vector<Vec2>& r, int k, double e, double B, d
       }
     }
   }
+  // Weighted least squares; (w t) t and (w s) t keep the unweighted sums' rounding when w = 1.
   double n = 0, st = 0, ss = 0, stt = 0, sst = 0, t_min = 1e300, t_max = -1e300;
-  for (const Vec2& p : r) {
-    const double s = kEdgeNormal[k].dot(p);
-    const double t = kEdgeTangent[k].dot(p);
+  for (size_t i = 0; i < r.size(); ++i) {
+    const double s = kEdgeNormal[k].dot(r[i]);
+    const double t = kEdgeTangent[k].dot(r[i]);
     if (t < -t_lim || t > t_lim || s < lo || s > hi) continue;
-    n += 1, st += t, ss += s, stt += t * t, sst += s * t;
+    const double w = pw[i], wt = w * t;
+    n += w, st += wt, ss += w * s, stt += wt * t, sst += (w * s) * t;
     t_min = std::min(t_min, t), t_max = std::max(t_max, t);
   }
-  line.used = static_cast<int>(n);
-  if (line.used < std::max(min_points, 1)) return line;
+  line.used = rounded_count(n);
+  line.weight = n;
+  if (n < std::max(min_points, 1)) return line;
   const double var_t = stt / n - (st / n) * (st / n);
   double beta = 0;
-  if (line.used >= 3 && t_max - t_min >= 0.02 && var_t > 1e-12)
-    beta = (sst / n - (st / n) * (ss / n)) / var_t;
+  if (n >= 3 && t_max - t_min >= 0.02 && var_t > 1e-12) beta = (sst / n - (st / n) * (ss / n)) / var_t;
   const double alpha = ss / n - beta * st / n;
   line.offset = 2 * alpha - lo;
   line.slope = 2 * beta;
@@ -560,27 +574,45 @@ void voxel_edge_samples(const std::vector<Vec2>& r, const std::vector<FacePoint>
 }
 
 // The edge at the outermost point with t inside the corner margins (a restart, biased inward).
-EdgeLine outermost_edge(const std::vector<Vec2>& r, int k, double half_tangent, double corner_margin,
-                        int min_points) {
+EdgeLine outermost_edge(const std::vector<Vec2>& r, const std::vector<double>& pw, int k, double half_tangent,
+                        double corner_margin, int min_points) {
   EdgeLine line;
   const double t_lim = half_tangent - corner_margin;
   double s_max = -std::numeric_limits<double>::infinity();
-  for (const Vec2& p : r) {
-    const double t = kEdgeTangent[k].dot(p);
+  for (size_t i = 0; i < r.size(); ++i) {
+    const double t = kEdgeTangent[k].dot(r[i]);
     if (t < -t_lim || t > t_lim) continue;
-    s_max = std::max(s_max, kEdgeNormal[k].dot(p));
-    ++line.used;
+    s_max = std::max(s_max, kEdgeNormal[k].dot(r[i]));
+    line.weight += pw[i];
   }
-  line.ok = line.used >= std::max(min_points, 1);
+  line.used = rounded_count(line.weight);
+  line.ok = line.weight >= std::max(min_points, 1);
   line.offset = s_max;
   return line;
 }
 
-double quantile(std::vector<double> v, double q) {
+// The element at index floor(q (n - 1)) of v sorted. With weights w (w[i] the multiplicity of v[i],
+// total W): the element at unit-mass position floor(q (W - 1)) of the weight-expanded sorted list, i.e.
+// the first sorted element whose cumulative weight exceeds that position: exactly the unweighted
+// quantile of v with element i repeated w[i] times, for integer weights.
+double quantile(std::vector<double> v, double q, const std::vector<double>* w = nullptr) {
   if (v.empty()) return 0;
-  const size_t k = static_cast<size_t>(std::clamp(q, 0.0, 1.0) * static_cast<double>(v.size() - 1));
-  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(k), v.end());
-  return v[k];
+  if (w == nullptr) {
+    const size_t k = static_cast<size_t>(std::clamp(q, 0.0, 1.0) * static_cast<double>(v.size() - 1));
+    std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(k), v.end());
+    return v[k];
+  }
+  std::vector<size_t> order(v.size());
+  double total = 0;
+  for (size_t i = 0; i < v.size(); ++i) order[i] = i, total += (*w)[i];
+  std::sort(order.begin(), order.end(), [&](size_t a, size_t b) { return v[a] < v[b]; });
+  const double pos = std::floor(std::clamp(q, 0.0, 1.0) * std::max(total - 1, 0.0));
+  double cum = 0;
+  for (size_t i : order) {
+    cum += (*w)[i];
+    if (cum > pos) return v[i];
+  }
+  return v[order.back()];
 }
 
 const char* kEdgeName[4] = {"+x", "+y", "-x", "-y"};
@@ -603,6 +635,8 @@ core::Status check_config(const PlateRoi& roi, const PlateFitConfig& c) {
   if (c.sampling == CloudSampling::kVoxelMeans && !(c.voxel_m > 0 && std::isfinite(c.voxel_m)))
     return core::InvalidArgument("plate fit: voxel-mean sampling needs voxel_m > 0, got " +
                                  std::to_string(c.voxel_m));
+  if (c.has_viewpoint && !c.viewpoint_world.allFinite())
+    return core::InvalidArgument("plate fit: viewpoint_world is not finite");
   if (!(c.plane_inlier_m > 0) || !(c.edge_band_m > 0) || !(c.edge_band_out_m > 0) ||
       !(c.corner_margin_m >= 0) || !(c.max_normal_angle_rad > 0 && c.max_normal_angle_rad < M_PI / 2) ||
       c.ransac_iterations < 1 || c.min_inliers < 3 || c.min_edge_samples < 1 || c.max_iterations < 1)
@@ -613,17 +647,24 @@ core::Status check_config(const PlateRoi& roi, const PlateFitConfig& c) {
   return core::Status::Ok();
 }
 
-// Least-squares plane (centroid, smallest-eigenvalue direction) of the points within thr of (n, c).
-bool refine_plane(const std::vector<Eigen::Vector3d>& P, double thr, Eigen::Vector3d* n, Eigen::Vector3d* c) {
+// Weighted least-squares plane (weighted centroid, smallest-eigenvalue direction of the weighted
+// scatter) of the points within thr of (n, c); W[i] is the weight of P[i].
+bool refine_plane(const std::vector<Eigen::Vector3d>& P, const std::vector<double>& W, double thr,
+                  Eigen::Vector3d* n, Eigen::Vector3d* c) {
   Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-  int cnt = 0;
-  for (const auto& p : P)
-    if (std::fabs(n->dot(p - *c)) <= thr) sum += p, ++cnt;
+  double cnt = 0;
+  for (size_t i = 0; i < P.size(); ++i)
+    if (std::fabs(n->dot(P[i] - *c)) <= thr) sum += W[i] * P[i], cnt += W[i];
   if (cnt < 3) return false;
   const Eigen::Vector3d mean = sum / cnt;
   Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
-  for (const auto& p : P)
-    if (std::fabs(n->dot(p - *c)) <= thr) cov += (p - mean) * (p - mean).transpose();
+  for (size_t i = 0; i < P.size(); ++i) {
+    if (std::fabs(n->dot(P[i] - *c)) <= thr) {
+      const Eigen::Vector3d d = P[i] - mean;
+      const Eigen::Vector3d wd = W[i] * d;
+      cov += wd * d.transpose();
+    }
+  }
   Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(cov);
   Eigen::Vector3d nn = es.eigenvectors().col(0);
   if (nn.dot(*n) < 0) nn = -nn;
@@ -769,10 +810,164 @@ PlateRoi plate_roi_from_truth(const WeldGroundTruth& gt, size_t i, double margin
   return roi;
 }
 
+// Edges on a support (header): the face's height again from its interior (the band-mean stage's plane
+// takes in support points near the edges when the plate is thin against the noise), then every edge
+// with a support beyond it placed by plate_detail::refine_edge_on_support.
+static void refine_support_edges(const std::vector<Eigen::Vector3d>& P, const std::vector<double>& W,
+                                 const PlateRoi& roi, const PlateFitConfig& config,
+                                 const Eigen::Vector3d& nrm, const Eigen::Vector3d& e_u,
+                                 const Eigen::Vector3d& e_w, Eigen::Vector3d* o_face, Vec2* centre,
+                                 double* hu, double* hw, double phi, double corner_margin, PlateFit* fit) {
+  using plate_detail::RaySample;
+  const double T = roi.size_m.z();
+  // Where the model starts: the band mean's rectangle, except along an axis where it reaches past
+  // the ROI's own extent by more than a centimetre (the band mean merged the plate with its support
+  // there): there the ROI's centre and size, which a detection gives to centimetres.
+  const Eigen::Matrix2d R0 = Eigen::Rotation2Dd(phi).toRotationMatrix();
+  const double nominal[2] = {0.5 * roi.size_m.x(), 0.5 * roi.size_m.y()};
+  double* half[2] = {hu, hw};
+  for (int a = 0; a < 2; ++a) {
+    if (*half[a] <= nominal[a] + 0.01) continue;
+    *half[a] = nominal[a];
+    // The centre back onto the ROI's along this rectangle axis.
+    const Vec2 axis = R0.col(a);
+    *centre -= axis.dot(*centre) * axis;
+  }
+  const Eigen::Matrix2d R = R0;
+  // Rectangle frame: x, y along the fitted rectangle's axes from its centre, z along the normal.
+  auto rect = [&](const Eigen::Vector3d& p) {
+    const Eigen::Vector3d d = p - *o_face;
+    const Vec2 r = R.transpose() * (Vec2(e_u.dot(d), e_w.dot(d)) - *centre);
+    return Eigen::Vector3d(r.x(), r.y(), nrm.dot(d));
+  };
+  // The face's plane again, from its interior and the rays. The band-mean stage's plane takes in
+  // support points near the edges, and under noise along oblique rays a fit of the observed points
+  // tilts (a point's height error and its error in the face come from the same range error). Each
+  // interior point is slid along its ray onto the current plane, where its place in the face is
+  // exact, and the plane is fitted to the observed heights over those places (weighted least
+  // squares, three rounds, points within half a thickness of the plane).
+  const double inset = config.support_interior_inset_m;
+  std::vector<Eigen::Vector3d> Q(P.size());
+  for (size_t i = 0; i < P.size(); ++i) Q[i] = rect(P[i]);
+  Eigen::Vector3d v = rect(config.viewpoint_world);
+  if (!(v.z() > 0)) return;       // seen from behind the face: no model
+  double pa = 0, pb = 0, pc = 0;  // the plane z = pa x + pb y + pc (rectangle frame)
+  for (int round = 0; round < 3; ++round) {
+    Eigen::Matrix3d A = Eigen::Matrix3d::Zero();
+    Eigen::Vector3d rhs = Eigen::Vector3d::Zero();
+    int used = 0;
+    for (size_t i = 0; i < Q.size(); ++i) {
+      const Eigen::Vector3d& q = Q[i];
+      if (!(std::fabs(q.x()) < *hu - inset && std::fabs(q.y()) < *hw - inset)) continue;
+      if (std::fabs(q.z() - (pa * q.x() + pb * q.y() + pc)) > 0.5 * T) continue;
+      const Eigen::Vector3d d = q - v;
+      const double den = d.z() - pa * d.x() - pb * d.y();
+      if (std::fabs(den) < 1e-9) continue;
+      const double lambda = (pa * v.x() + pb * v.y() + pc - v.z()) / den;
+      const Eigen::Vector3d x0(v.x() + lambda * d.x(), v.y() + lambda * d.y(), 1.0);
+      A += W[i] * x0 * x0.transpose();
+      rhs += W[i] * q.z() * x0;
+      ++used;
+    }
+    if (used < 50) return;
+    const Eigen::Vector3d abc = A.ldlt().solve(rhs);
+    if (!abc.allFinite()) return;
+    pa = abc.x(), pb = abc.y(), pc = abc.z();
+  }
+  // Into the refitted plane's frame: origin (0, 0, pc), normal (-pa, -pb, 1), x along (1, 0, pa).
+  const Eigen::Vector3d n1 = Eigen::Vector3d(-pa, -pb, 1.0).normalized();
+  const Eigen::Vector3d x1 = Eigen::Vector3d(1.0, 0.0, pa).normalized(), y1 = n1.cross(x1);
+  const Eigen::Vector3d o1(0, 0, pc);
+  auto refit = [&](const Eigen::Vector3d& q) {
+    const Eigen::Vector3d d = q - o1;
+    return Eigen::Vector3d(x1.dot(d), y1.dot(d), n1.dot(d));
+  };
+  for (Eigen::Vector3d& q : Q) q = refit(q);
+  v = refit(v);
+  *o_face += pc * nrm;
+  const Eigen::Vector3d vp = v;
+  // Range noise from the interior points.
+  std::vector<RaySample> face;
+  for (size_t i = 0; i < P.size(); ++i) {
+    if (std::fabs(Q[i].x()) < *hu - inset && std::fabs(Q[i].y()) < *hw - inset &&
+        std::fabs(Q[i].z()) < 0.5 * T)
+      face.push_back({Q[i], vp, W[i]});
+  }
+  plate_detail::RangeNoise noise;
+  if (!noise.fit(face)) return;
+  double off[4] = {*hu, *hw, *hu, *hw};  // +x, +y, -x, -y outward offsets
+  for (int k = 0; k < 4; ++k) {
+    // Edge frame: s outward, t along the edge, h; the edge at s = off[k].
+    const Vec2 n2 = kEdgeNormal[k], t2 = kEdgeTangent[k];
+    const double half_t = (k % 2 == 0) ? *hw : *hu;
+    auto to_edge = [&](const Eigen::Vector3d& q) {
+      const Vec2 r(q.x(), q.y());
+      return Eigen::Vector3d(n2.dot(r), t2.dot(r), q.z());
+    };
+    const Eigen::Vector3d vp_e = to_edge(vp);
+    // What lies beyond: the weighted median height past the edge (outside a plate's shadow).
+    std::vector<std::pair<double, double>> beyond;
+    std::vector<RaySample> samples;
+    for (size_t i = 0; i < Q.size(); ++i) {
+      const Eigen::Vector3d q = to_edge(Q[i]);
+      if (std::fabs(q.y()) > half_t - corner_margin) continue;
+      if (q.x() > off[k] + config.support_probe_from_m && q.x() < off[k] + config.support_probe_to_m)
+        beyond.emplace_back(q.z(), W[i]);
+      if (q.x() > off[k] - config.support_band_in_m && q.x() < off[k] + config.support_probe_to_m &&
+          q.z() > -2.5 * T - 0.01 && q.z() < 0.01 + 1.5 * T)
+        samples.push_back({q, vp_e, W[i]});
+    }
+    double beyond_w = 0;
+    for (const auto& [h, w] : beyond) beyond_w += w;
+    if (beyond_w < config.support_min_weight) continue;
+    std::sort(beyond.begin(), beyond.end());
+    double a = 0, depth = 0;
+    for (const auto& [h, w] : beyond) {
+      a += w;
+      if (a >= 0.5 * beyond_w) {
+        depth = -h;
+        break;
+      }
+    }
+    if (!(depth > config.support_depth_min_ratio * T && depth < config.support_depth_max_ratio * T)) continue;
+    const double D = config.support_depth_from_roi ? T : depth;
+    const plate_detail::EdgeOnSupport e =
+        plate_detail::refine_edge_on_support(samples, noise, off[k], D, config.support_search_m, 0.0002);
+    if (!e.ok) continue;
+    off[k] = e.edge_s;
+    fit->edge_on_support[static_cast<size_t>(k)] = true;
+    ++fit->edges_on_support;
+  }
+  // The rectangle from the four offsets (in the rectangle frame; back to face coordinates).
+  const Vec2 shift = R * Vec2(0.5 * (off[0] - off[2]), 0.5 * (off[1] - off[3]));
+  *centre += shift;
+  *hu = 0.5 * (off[0] + off[2]);
+  *hw = 0.5 * (off[1] + off[3]);
+}
+
 core::Expected<PlateFit> fit_plate(const CloudPoint* points, size_t n, const PlateRoi& roi,
-                                   const PlateFitConfig& config) {
+                                   const PlateFitConfig& config, const float* weights) {
   HWR_RETURN_IF_ERROR(check_config(roi, config));
   if (points == nullptr && n > 0) return core::InvalidArgument("plate fit: null points with n > 0");
+  // Weights (header, "Weights"): multiplicities of raw points. Without them every weight is 1.0,
+  // which leaves every sum, count and comparison below bit-identical to the unweighted fit.
+  bool integer_weights = true;
+  if (weights != nullptr) {
+    if (config.sampling != CloudSampling::kRawPoints)
+      return core::InvalidArgument(
+          "plate fit: weights are for kRawPoints (a voxel mean's count does not enter the centroid "
+          "inversion)");
+    for (size_t i = 0; i < n; ++i) {
+      const float w = weights[i];
+      if (!(std::isfinite(w) && w > 0)) {
+        char buf[48];
+        std::snprintf(buf, sizeof(buf), "%g", static_cast<double>(w));
+        return core::InvalidArgument("plate fit: weight " + std::to_string(i) + " is " + buf +
+                                     " (weights must be finite and > 0)");
+      }
+      integer_weights = integer_weights && w == std::floor(w);
+    }
+  }
   PlateFit fit;
 
   // ROI: the plate box inflated by the margins, other plates' points left out.
@@ -781,6 +976,8 @@ core::Expected<PlateFit> fit_plate(const CloudPoint* points, size_t n, const Pla
   const Eigen::Vector3d half =
       0.5 * roi.size_m + Eigen::Vector3d(roi.margin_in_plane_m, roi.margin_in_plane_m, roi.margin_normal_m);
   std::vector<Eigen::Vector3d> P;
+  std::vector<double> W;  // W[i]: weight of P[i]
+  double roi_weight = 0;
   for (size_t i = 0; i < n; ++i) {
     const Eigen::Vector3d p(points[i].x_m, points[i].y_m, points[i].z_m);
     const Eigen::Vector3d q = T_plate_world * p;
@@ -789,10 +986,13 @@ core::Expected<PlateFit> fit_plate(const CloudPoint* points, size_t n, const Pla
     const double d_own = own.distance_m(p);
     bool excluded = false;
     for (const OrientedBox& b : roi.others) excluded = excluded || b.distance_m(p) < d_own;
-    if (!excluded) P.push_back(p);
+    if (excluded) continue;
+    P.push_back(p);
+    W.push_back(weights != nullptr ? static_cast<double>(weights[i]) : 1.0);
+    roi_weight += W.back();
   }
-  fit.roi_points = static_cast<int>(P.size());
-  if (fit.roi_points < config.min_inliers) {
+  fit.roi_points = rounded_count(roi_weight);
+  if (roi_weight < config.min_inliers) {
     fit.reason = std::to_string(fit.roi_points) + " points in the ROI (min " +
                  std::to_string(config.min_inliers) + ")";
     return fit;
@@ -805,12 +1005,31 @@ core::Expected<PlateFit> fit_plate(const CloudPoint* points, size_t n, const Pla
   const double cos_max = std::cos(config.max_normal_angle_rad);
   const double thr = config.plane_inlier_m;
   std::mt19937 rng(config.seed);
-  std::uniform_int_distribution<size_t> pick(0, P.size() - 1);
-  int best = -1;
+  // Minimal samples: uniform over the points without weights; with weights, over the weight-expanded
+  // cloud (point i taken with probability W[i] / sum W). Integer weights below 2^53 draw the index
+  // into the expanded cloud exactly as uniform sampling of the duplicated points does (same seed, same
+  // draws, same points picked); other weights draw a real position in [0, sum W).
+  std::vector<double> cum;  // cumulative weights
+  if (weights != nullptr) {
+    cum.resize(W.size());
+    double acc = 0;
+    for (size_t i = 0; i < W.size(); ++i) cum[i] = acc += W[i];
+    integer_weights = integer_weights && acc < 9007199254740992.0;  // 2^53: sums exact
+  }
+  std::uniform_int_distribution<size_t> pick(
+      0, weights != nullptr && integer_weights ? static_cast<size_t>(roi_weight) - 1 : P.size() - 1);
+  std::uniform_real_distribution<double> pick_real(0.0, roi_weight);
+  auto draw = [&]() -> size_t {
+    if (weights == nullptr) return pick(rng);
+    const double x = integer_weights ? static_cast<double>(pick(rng)) : pick_real(rng);
+    const size_t i = static_cast<size_t>(std::upper_bound(cum.begin(), cum.end(), x) - cum.begin());
+    return std::min(i, P.size() - 1);
+  };
+  double best = -1;  // the winner's inlier weight
   double best_cost = std::numeric_limits<double>::infinity();
   Eigen::Vector3d n_best = z_roi, c_best = o_roi;
   for (int it = 0; it < config.ransac_iterations; ++it) {
-    const size_t a = pick(rng), b = pick(rng), c = pick(rng);
+    const size_t a = draw(), b = draw(), c = draw();
     if (a == b || b == c || a == c) continue;
     Eigen::Vector3d nn = (P[b] - P[a]).cross(P[c] - P[a]);
     const double len = nn.norm();
@@ -819,43 +1038,45 @@ core::Expected<PlateFit> fit_plate(const CloudPoint* points, size_t n, const Pla
     if (std::fabs(nn.dot(z_roi)) < cos_max) continue;
     // MSAC score (Torr & Zisserman 2000): truncated squared distance, so that a plane between the
     // two faces of a thin plate, which holds both faces' points at the threshold, loses.
-    int cnt = 0;
+    // Weighted: a point of weight k costs and counts k times.
+    double cnt = 0;
     double cost = 0;
-    for (const auto& p : P) {
-      const double d = nn.dot(p - P[a]);
-      cost += std::min(d * d, thr * thr);
-      cnt += std::fabs(d) <= thr;
+    for (size_t i = 0; i < P.size(); ++i) {
+      const double d = nn.dot(P[i] - P[a]);
+      cost += W[i] * std::min(d * d, thr * thr);
+      if (std::fabs(d) <= thr) cnt += W[i];
     }
     if (cost < best_cost) best_cost = cost, best = cnt, n_best = nn, c_best = P[a];
   }
   if (best < config.min_inliers) {
     fit.reason = "no plane within " + std::to_string(config.max_normal_angle_rad) +
                  " rad of the ROI normal has " + std::to_string(config.min_inliers) + " points (best " +
-                 std::to_string(std::max(best, 0)) + ")";
+                 std::to_string(rounded_count(std::max(best, 0.0))) + ")";
     return fit;
   }
   Eigen::Vector3d nrm = n_best, ctr = c_best;
   for (int it = 0; it < 3; ++it)
-    if (!refine_plane(P, thr, &nrm, &ctr)) break;
+    if (!refine_plane(P, W, thr, &nrm, &ctr)) break;
   // Outward normal: the plate's centre lies behind the face.
   if (nrm.dot(ctr - o_roi) < 0 || (std::fabs(nrm.dot(ctr - o_roi)) < 1e-9 && nrm.dot(z_roi) < 0)) nrm = -nrm;
   fit.face_sign = nrm.dot(z_roi) >= 0 ? 1 : -1;
   fit.normal_world = nrm;
   double sq = 0;
-  int inl = 0;
-  for (const auto& p : P) {
-    const double h = nrm.dot(p - ctr);
-    if (std::fabs(h) <= thr) sq += h * h, ++inl;
+  double inl = 0;  // inlier weight
+  for (size_t i = 0; i < P.size(); ++i) {
+    const double h = nrm.dot(P[i] - ctr);
+    if (std::fabs(h) <= thr) sq += (W[i] * h) * h, inl += W[i];
   }
-  fit.inliers = inl;
+  fit.inliers = rounded_count(inl);
   fit.plane_rms_m = inl > 0 ? std::sqrt(sq / inl) : 0;
   if (inl < config.min_inliers) {
-    fit.reason = std::to_string(inl) + " plane inliers (min " + std::to_string(config.min_inliers) + ")";
+    fit.reason =
+        std::to_string(fit.inliers) + " plane inliers (min " + std::to_string(config.min_inliers) + ")";
     return fit;
   }
 
   // Face frame: origin the ROI centre projected on the plane, u along the ROI's x, w = n x u.
-  const Eigen::Vector3d o_face = o_roi - nrm.dot(o_roi - ctr) * nrm;
+  Eigen::Vector3d o_face = o_roi - nrm.dot(o_roi - ctr) * nrm;
   const Eigen::Vector3d e_u = (x_roi - x_roi.dot(nrm) * nrm).normalized();
   const Eigen::Vector3d e_w = nrm.cross(e_u);
 
@@ -879,15 +1100,27 @@ core::Expected<PlateFit> fit_plate(const CloudPoint* points, size_t n, const Pla
     }
   }
   std::vector<FacePoint> F;
+  std::vector<double> FW;  // FW[i]: weight of F[i]
+  double face_weight = 0;
   std::vector<VoxelCell> vcells;
   std::vector<double> hs;
-  for (const auto& p : P) {
+  for (size_t i = 0; i < P.size(); ++i) {
+    const Eigen::Vector3d& p = P[i];
     const Eigen::Vector3d d = p - o_face;
     const double h = nrm.dot(d);
     if (h < h_min || h > h_max) continue;
     if (voxel && other_cells.occupied(p + voxel_m * nrm)) continue;
     FacePoint f;
     f.q = Vec2(e_u.dot(d), e_w.dot(d));
+    if (config.has_viewpoint && !voxel) {
+      // Where the point's viewing ray meets the fitted face (PlateFitConfig::viewpoint_world).
+      const Eigen::Vector3d ray = (p - config.viewpoint_world).normalized();
+      const double c = nrm.dot(ray);
+      if (std::fabs(c) >= 0.2) {
+        const Eigen::Vector3d on_face = d - (h / c) * ray;
+        f.q = Vec2(e_u.dot(on_face), e_w.dot(on_face));
+      }
+    }
     f.p_world = p;
     if (voxel) {
       VoxelCell c;
@@ -898,6 +1131,8 @@ core::Expected<PlateFit> fit_plate(const CloudPoint* points, size_t n, const Pla
       }
     }
     F.push_back(f);
+    FW.push_back(W[i]);
+    face_weight += W[i];
   }
   // Wall fractions of the voxels; the face noise is the robust spread of the voxel means' heights.
   std::vector<double> wall(vcells.size(), 0.0);
@@ -907,8 +1142,8 @@ core::Expected<PlateFit> fit_plate(const CloudPoint* points, size_t n, const Pla
   }
   // Where the face continues (the boundary test of voxel_edge_samples).
   for (const FacePoint& f : F) face_cells.add(f.p_world);
-  if (static_cast<int>(F.size()) < config.min_inliers) {
-    fit.reason = std::to_string(F.size()) +
+  if (face_weight < config.min_inliers) {
+    fit.reason = std::to_string(rounded_count(face_weight)) +
                  (voxel ? " face voxels" : " points on the open side of the face") + " (min " +
                  std::to_string(config.min_inliers) + ")";
     return fit;
@@ -920,8 +1155,9 @@ core::Expected<PlateFit> fit_plate(const CloudPoint* points, size_t n, const Pla
   {
     std::vector<double> u(F.size()), w(F.size());
     for (size_t i = 0; i < F.size(); ++i) u[i] = F[i].q.x(), w[i] = F[i].q.y();
-    const double u0 = quantile(u, 0.01), u1 = quantile(u, 0.99), w0 = quantile(w, 0.01),
-                 w1 = quantile(w, 0.99);
+    const std::vector<double>* qw = weights != nullptr ? &FW : nullptr;
+    const double u0 = quantile(u, 0.01, qw), u1 = quantile(u, 0.99, qw), w0 = quantile(w, 0.01, qw),
+                 w1 = quantile(w, 0.99, qw);
     centre = Vec2(0.5 * (u0 + u1), 0.5 * (w0 + w1));
     hu = 0.5 * (u1 - u0) / 0.98;
     hw = 0.5 * (w1 - w0) / 0.98;
@@ -959,10 +1195,10 @@ core::Expected<PlateFit> fit_plate(const CloudPoint* points, size_t n, const Pla
         const double B = std::min(start ? 3 * band : band, 0.5 * e);
         double B_out = std::max(config.edge_band_out_m, 3 * fit.plane_rms_m);
         if (voxel) B_out = std::max(B_out, config.voxel_m);
-        line = band_mean_edge(r, k, e, B, B_out, half_t, corner_margin, config.min_edge_samples, !voxel);
+        line = band_mean_edge(r, FW, k, e, B, B_out, half_t, corner_margin, config.min_edge_samples, !voxel);
         // The band fell off the points (the edge was pulled out past a gap): restart it from the
         // outermost point along the edge.
-        if (!line.ok) line = outermost_edge(r, k, half_t, corner_margin, config.min_edge_samples);
+        if (!line.ok) line = outermost_edge(r, FW, k, half_t, corner_margin, config.min_edge_samples);
       }
       fit.edge_samples[static_cast<size_t>(k)] = line.used;
       if (inversion) fallback[static_cast<size_t>(k)] = !line.ok;
@@ -973,6 +1209,7 @@ core::Expected<PlateFit> fit_plate(const CloudPoint* points, size_t n, const Pla
         line.offset = e;
         line.slope = 0;
         line.used = 0;
+        line.weight = 0;
       }
       if (!line.ok) {
         fit.reason = std::string("edge ") + kEdgeName[k] + ": " + std::to_string(line.used) + " " +
@@ -981,8 +1218,8 @@ core::Expected<PlateFit> fit_plate(const CloudPoint* points, size_t n, const Pla
         return fit;
       }
       off[k] = line.offset;
-      slope_sum += line.used * line.slope;
-      slope_w += line.used;
+      slope_sum += line.weight * line.slope;
+      slope_w += line.weight;
     }
     const double new_hu = 0.5 * (off[0] + off[2]), new_hw = 0.5 * (off[1] + off[3]);
     if (!(new_hu > 0) || !(new_hw > 0)) {
@@ -1009,6 +1246,14 @@ core::Expected<PlateFit> fit_plate(const CloudPoint* points, size_t n, const Pla
   fit.iterations = it + 1;
   fit.edges_from_band_mean = static_cast<int>(std::count(fallback.begin(), fallback.end(), true));
   fit.at_roi_limit = at_limit[0] || at_limit[1];
+
+  // Edges on a support, from the rays (header, "Edges on a support"; plate_edge_rays.hpp).
+  if (config.has_viewpoint && !voxel && config.support_edges) {
+    refine_support_edges(P, W, roi, config, nrm, e_u, e_w, &o_face, &centre, &hu, &hw, phi, corner_margin,
+                         &fit);
+    fit.at_roi_limit =
+        std::fabs(centre.x()) + hu >= u_limit - 1e-9 || std::fabs(centre.y()) + hw >= w_limit - 1e-9;
+  }
 
   // c. Results.
   const Eigen::Matrix2d R = Eigen::Rotation2Dd(phi).toRotationMatrix();

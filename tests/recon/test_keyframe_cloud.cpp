@@ -82,6 +82,34 @@ TEST(KeyframeCloud, GivenInvalidFarAndEdgePixelsThenTheyAreCountedAndDropped) {
   }
 }
 
+TEST(KeyframeCloud, GivenEdgeKeepsNearerThenOnlyTheFarSideOfADepthEdgeIsDropped) {
+  // A nearer block (1 m) on a 2 m wall, and a hole: the block's outermost pixels stay, the wall's
+  // pixels beside it go, and nothing is dropped for being next to the hole.
+  const hal::PinholeIntrinsics K = intrinsics();
+  cv::Mat depth(K.height, K.width, CV_32FC1, cv::Scalar(2.0f));
+  depth(cv::Rect(20, 10, 10, 10)).setTo(1.0f);
+  depth(cv::Rect(50, 30, 4, 4)).setTo(0.0f);
+  KeyframeCloudConfig cfg;
+  cfg.stride_px = 1;
+  cfg.edge_keeps_nearer = true;
+  core::Arena arena(keyframe_cloud_capacity_bytes(K.width, K.height, cfg));
+  auto cloud = build_keyframe_cloud(cv::Mat(), depth, K, Eigen::Isometry3d::Identity(), cfg, &arena);
+  ASSERT_TRUE(cloud.ok()) << cloud.status().message();
+  // The block's 100 pixels all kept; its 4-neighbour ring on the wall (4 x 10) dropped.
+  int block = 0;
+  for (int i = 0; i < cloud->size; ++i) block += std::abs(cloud->points[i].z_m - 1.0f) < 1e-6f;
+  EXPECT_EQ(block, 100);
+  EXPECT_EQ(cloud->stats.edges, 40);
+  EXPECT_EQ(cloud->stats.invalid, 16);
+  EXPECT_EQ(cloud->stats.kept, K.width * K.height - 40 - 16);
+  // The default drops both sides and the hole's ring: 36 block pixels (its border) too.
+  cfg.edge_keeps_nearer = false;
+  arena.reset();
+  auto both = build_keyframe_cloud(cv::Mat(), depth, K, Eigen::Isometry3d::Identity(), cfg, &arena);
+  ASSERT_TRUE(both.ok());
+  EXPECT_EQ(both->stats.edges, 40 + 36 + 16);
+}
+
 TEST(KeyframeCloud, GivenAStrideThenEveryStrideThPixelIsSampled) {
   const hal::PinholeIntrinsics K = intrinsics();
   cv::Mat depth(K.height, K.width, CV_32FC1, cv::Scalar(1.0f));

@@ -104,7 +104,9 @@ std::string image_list(const char* what, const std::string& scenario, const std:
   return s;
 }
 
-std::string weld_yaml(const ScenarioSpec& spec, const Eigen::Isometry3d& T_world_scene) {
+}  // namespace
+
+std::string weld_groundtruth_yaml(const ScenarioSpec& spec, const Eigen::Isometry3d& T_world_scene) {
   const SceneGroundTruth truth = scene_ground_truth(spec.scene);
   std::string y;
   y += "# Weld work pieces of scenario '" + spec.name + "' in the world frame of this run (metres).\n";
@@ -136,6 +138,8 @@ std::string weld_yaml(const ScenarioSpec& spec, const Eigen::Isometry3d& T_world
   }
   return y;
 }
+
+namespace {
 
 core::Status write_png(const std::string& path, const cv::Mat& img, std::vector<unsigned char>* buf) {
   // Level 1 with Huffman-only coding: the sensor noise leaves little for LZ77 to find, so this is
@@ -225,8 +229,8 @@ core::Expected<RunSummary> write_run(const ScenarioSpec& spec_in, const RunOptio
   }
   HWR_RETURN_IF_ERROR(
       save_sim_calibration(out + "/calibration.yaml", make_sim_calibration(spec, run.T_scene_world)));
-  HWR_RETURN_IF_ERROR(
-      text::write_file_atomic(out + "/weld_groundtruth.yaml", weld_yaml(spec, run.T_world_scene)));
+  HWR_RETURN_IF_ERROR(text::write_file_atomic(out + "/weld_groundtruth.yaml",
+                                              weld_groundtruth_yaml(spec, run.T_world_scene)));
   HWR_RETURN_IF_ERROR(text::write_file_atomic(out + "/scenario_resolved.yaml", scenario_to_yaml(spec)));
   sum.files.insert(sum.files.end(), {"calibration.yaml", "weld_groundtruth.yaml", "scenario_resolved.yaml"});
 

@@ -5,8 +5,9 @@
 // the keyframe image. Rejected and counted: invalid depth (0, NaN, inf), depth outside
 // [min_depth_m, max_depth_m], and depth-discontinuity edges (a 4-neighbour whose depth differs by
 // more than max_depth_step of the pixel's depth: the flying pixels between a foreground edge and
-// the background). Points are written into a caller's core::Arena, so the mapping task's memory
-// is fixed at start-up; an arena without room is an error, nothing is written past it.
+// the background; KeyframeCloudConfig::edge_keeps_nearer keeps the foreground's own edge pixels). Points are
+// written into a caller's core::Arena, so the mapping task's memory is fixed at start-up; an arena without
+// room is an error, nothing is written past it.
 
 #include <cstdint>
 
@@ -31,6 +32,13 @@ struct KeyframeCloudConfig {
   float max_depth_m = 8.0f;      // the ZED 2i's depth noise grows with z²; beyond this it is not map quality
   int stride_px = 2;             // every stride-th pixel in u and v
   float max_depth_step = 0.05f;  // relative depth jump to a 4-neighbour that marks an edge
+  // false: both sides of a depth edge are dropped, and so is a pixel next to an invalid one (the map:
+  // a flying pixel is never kept). true: only the far side is dropped (a pixel with a valid
+  // 4-neighbour nearer by more than the step), so a foreground silhouette keeps its outermost
+  // pixel: dropping it moves every silhouette edge inwards by a pixel (~2.5 mm at 1.5 m), which the
+  // welding regions' fine cloud cannot afford. A flying pixel between the two surfaces still has
+  // the nearer surface beside it and is dropped.
+  bool edge_keeps_nearer = false;
 };
 
 struct KeyframeCloudStats {

@@ -26,6 +26,7 @@
 #include "hwr/recon/keyframe_cloud.hpp"
 #include "hwr/recon/keyframe_sensor_tags.hpp"
 #include "hwr/recon/map_store.hpp"
+#include "hwr/recon/fine_region_map.hpp"
 #include "hwr/recon/voxel_map.hpp"
 
 namespace hwr::recon {
@@ -62,15 +63,18 @@ struct LocalMapperConfig {
   int max_keyframes_per_segment = 4096;
   int stream_lag_keyframes = 5;  // MapStreamSink: a voxel is streamed this many keyframes after its creation
   int stream_min_points = 20'000;  // ... in batches of at least this many (except at a segment close)
+  // The fine cloud inside welding regions (fine_region_map.hpp); add_weld_region() feeds it.
+  FineRegionConfig fine;
 };
 
 struct LocalMapperCounters {
   uint64_t keyframes_fused = 0;
   uint64_t keyframes_without_images = 0;  // their images were gone: pose kept, no points
   uint64_t segments_closed = 0;
-  uint64_t points_closed = 0;  // voxels in closed segments
-  uint64_t junctions_orb = 0;  // seeded by ORB
-  uint64_t junctions_ndt = 0;  // refined by NDT
+  uint64_t points_closed = 0;       // voxels in closed segments
+  uint64_t fine_points_closed = 0;  // fine voxels (welding regions) in closed segments
+  uint64_t junctions_orb = 0;       // seeded by ORB
+  uint64_t junctions_ndt = 0;       // refined by NDT
   uint64_t cloud_errors = 0;
 };
 
@@ -99,6 +103,14 @@ class LocalMapper {
   // with the ones nearest its time (keyframe_sensor_tags.hpp), for relocalization against this run.
   void add_mag(const hal::MagSample& sample) { sensor_tags_.add_mag(sample); }
   void add_gnss(const hal::GnssFix& fix) { sensor_tags_.add_gnss(fix); }
+  // A welding region detected on a keyframe whose estimated pose is T_world_cam (a detector, the
+  // operator, or the simulator's truth): from the next fused keyframe on, the pixels inside it also
+  // go into the fine cloud. Returns the region's id, or -1 when refused (fine_region_map.hpp).
+  // Never allocates.
+  int64_t add_weld_region(const WeldRegion& detection, const Eigen::Isometry3d& T_world_cam) {
+    return fine_.add(detection, T_world_cam);
+  }
+  const FineRegionMap& fine_map() const { return fine_; }
 
   LocalMapper(LocalMapper&&) noexcept;
   LocalMapper& operator=(LocalMapper&&) noexcept;
@@ -106,7 +118,7 @@ class LocalMapper {
 
  private:
   LocalMapper(const LocalMapperConfig& config, const hal::PinholeIntrinsics& K, VoxelMap map,
-              JunctionAligner junction);
+              JunctionAligner junction, FineRegionMap fine);
   void fuse(const estimation::KeyframeStore& keyframes, int id, SegmentSink* sink);
   void close_segment(SegmentSink* sink);
   // Streams created voxels [streamed_voxels_, upto) of the active map.
@@ -116,6 +128,7 @@ class LocalMapper {
   hal::PinholeIntrinsics K_;
   VoxelMap map_;
   JunctionAligner junction_;
+  FineRegionMap fine_;
   std::unique_ptr<core::Arena> cloud_arena_;
   std::unique_ptr<core::Arena> junction_arena_[2];  // the previous keyframe's junction cloud, the current one
   int junction_prev_ = 0;                           // which arena holds the previous keyframe's cloud

@@ -11,6 +11,8 @@
 //       segment.yaml                  id, poses, junction, counts, travelled distance, CRC32s
 //       keyframes.bin                 keyframe records (little-endian, see map_store.cpp)
 //       cloud.bin                     CloudPoint array, segment frame
+//       fine.bin                      weld regions and the fine cloud with its counts (format 2 on;
+//                                     layout in map_store_binary.hpp)
 // Atomicity: a segment is written into DIR/segments/.tmp-seg_NNNNNN-<pid>/, every file fsync'ed,
 // then renamed to seg_NNNNNN and the parent directory fsync'ed; a crash at any moment leaves either
 // the whole segment or a .tmp- directory that open() deletes. Every read is validated (magic,
@@ -26,11 +28,12 @@
 #include "hwr/core/status.hpp"
 #include "hwr/hal/pinhole_camera.hpp"
 #include "hwr/recon/keyframe_cloud.hpp"
+#include "hwr/recon/weld_region.hpp"
 
 namespace hwr::recon {
 
 struct StoreMetadata {
-  uint32_t format_version = 1;
+  uint32_t format_version = 2;  // what a new store is created at (map_store.cpp: 1 and 2 are read)
   std::string robot_id = "hwr-0";
   std::string run_id;  // e.g. UTC start time "20261124T195600Z"
   hal::PinholeIntrinsics intrinsics;
@@ -91,6 +94,14 @@ struct SegmentRecord {
   int64_t t_first_ns = 0, t_last_ns = 0;
   std::vector<StoredKeyframe> keyframes;
   std::vector<CloudPoint> points_segment;  // in the segment frame
+  // Welding regions (weld_region.hpp, fine_region_map.hpp): the regions this segment's keyframes saw,
+  // and the fine cloud inside them: voxel means of side fine_voxel_m in the segment frame, with the
+  // number of points merged into each (fine_counts[i] >= 1 for fine_points_segment[i]). Empty (and
+  // fine_voxel_m 0) when the mapper kept no fine cloud.
+  double fine_voxel_m = 0;
+  std::vector<StoredWeldRegion> weld_regions;
+  std::vector<CloudPoint> fine_points_segment;
+  std::vector<uint32_t> fine_counts;
 };
 
 struct SegmentSummary {

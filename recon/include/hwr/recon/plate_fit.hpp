@@ -46,6 +46,39 @@
 // box than this plate's are left out, so an edge shared with a coplanar butt partner (or a web's
 // foot, coplanar with its base's side face) is bounded by the ground truth, not measured. Edges stay
 // inside the ROI; one that stops at its boundary is flagged (PlateFit::at_roi_limit).
+// Weights (kRawPoints only). A fine map stores voxel means of a grid finer than the depth noise
+// (2 mm), each with the number of raw points merged into it: a mean is then close to a raw point, but
+// a voxel holds many points where the surface was seen often and few near an edge, so the means
+// taken as unweighted raw points over-represent the sparse parts and bias the edges. weights[i] is
+// the multiplicity of point i (a voxel's count; finite and > 0, not necessarily an integer), and
+// every statistic is the weighted one, so that a point of weight k gives the result of k copies:
+//  - counts: the ROI's points, RANSAC's and the refined plane's inliers, the face points, each edge
+//    band's points, and the min_inliers / min_edge_samples checks against them (PlateFit's
+//    roi_points, inliers and edge_samples report the weight sums, rounded, saturating at INT_MAX);
+//  - RANSAC's MSAC cost; the plane refinement (weighted centroid and scatter) and its RMS;
+//  - the quantile start (quantiles of the weight-expanded list);
+//  - the band mean: its histogram and gap test, its least-squares line, and each edge's weight in
+//    the rotation update.
+// RANSAC draws its minimal samples from the weight-expanded cloud (point i with probability
+// w_i / sum w). For integer weights (sum below 2^53) the draws are exactly those of the cloud with
+// each point repeated w_i times in place (same seed, same points picked), so the fit is the
+// duplicated cloud's up to floating-point summation order; other weights draw a real position in
+// [0, sum w). kVoxelMeans with weights is kInvalidArgument ("weights are for kRawPoints"): that
+// model places each boundary voxel's mean in its own cell, one sample per voxel; a count is not a
+// multiplicity there. What weights cannot undo: a voxel whose points come from two surfaces (at a
+// web's foot, the web's face and the base's top in one 2 mm cell) has one mean between them.
+// Viewpoint (kRawPoints, PlateFitConfig::viewpoint_world). Depth noise lies along the viewing rays:
+// with the point where the points were seen from, each face point is placed in the face where its
+// ray meets the fitted plane (the noise along the ray drops out) before the edge stage.
+// Edges on a support (kRawPoints with a viewpoint; plate_edge_rays.hpp). A plate lying on a bench or
+// the floor, seen at a grazing angle, is as thin as the noise: near an edge its face's points and
+// the support's are moved by centimetres in the plane and by the plate's thickness across it, and
+// the support beyond a far edge lies in the plate's shadow; the band mean, which expects points of
+// the face alone, is pulled out to the ROI (seen: 40-80 mm on the sim lab's 10 mm floor plates). So,
+// after the band mean, the face's height is re-taken from its interior, and every edge with a
+// support beyond it (a median depth past the edge of 0.4-2.5 plate thicknesses) is placed where a
+// model of face, plate side and support explains the measured ranges along the rays best. Edges
+// without a support beyond (a butt partner's, a web's) keep their band-mean place.
 // Not real time: allocates per call (an evaluation tool, not the mapping task's hot path).
 
 #include <array>
@@ -155,13 +188,39 @@ struct PlateFitConfig {
   double corner_margin_m = 0.03;  // edge samples this close to a corner are not used (>= 2 voxels)
   int min_edge_samples = 5;       // points (band mean) or voxels (inversion) per edge; fewer: not seen
   int max_iterations = 12;        // rectangle updates
+  // kRawPoints: where the points were seen from (world frame), when known. Depth noise lies along the
+  // viewing rays, so noise that lifts a face point off the face (h) also moves it in the face, towards
+  // the camera for h > 0. Keeping only the open side of the face (h >= 0, "Edge-stage points") then
+  // keeps the points moved towards the camera, and every edge follows (in the sim lab: -1.2 mm on
+  // every plate's length, +3 mm on a base plate's width). With a viewpoint, each face point's place in
+  // the face is taken where its ray from the viewpoint meets the fitted plane (its h is kept for the
+  // selection): the ray-plane intersection undoes the noise along the ray. One viewpoint for all
+  // points (a region's mean camera centre, StoredWeldRegion::viewpoint_segment) is an approximation
+  // for views from elsewhere; rays within ~11 deg of the face (|cos| < 0.2 to its normal) are left.
+  bool has_viewpoint = false;
+  Eigen::Vector3d viewpoint_world = Eigen::Vector3d::Zero();
+  // kRawPoints with a viewpoint: edges on a support (header, "Edges on a support"). After the band
+  // mean, the face's height is taken again as the weighted median height of the points at least
+  // support_interior_inset_m inside the rectangle; then an edge whose points between
+  // support_probe_from_m and support_probe_to_m past it lie at a median depth D below the face with
+  // D in [support_depth_min_ratio, support_depth_max_ratio] x the ROI's thickness is placed by the
+  // ray model within support_search_m of its band-mean place, with D measured (or the ROI's
+  // thickness, support_depth_from_roi).
+  bool support_edges = true;
+  double support_interior_inset_m = 0.03;
+  double support_probe_from_m = 0.015, support_probe_to_m = 0.04;
+  double support_band_in_m = 0.03;  // samples from this far inside the edge
+  double support_depth_min_ratio = 0.4, support_depth_max_ratio = 2.5;
+  bool support_depth_from_roi = false;
+  double support_search_m = 0.02;
+  double support_min_weight = 100;
 };
 
 struct PlateFit {
   bool seen = false;
   std::string reason;  // why not seen (too few points, an edge without samples)
-  int roi_points = 0;  // points in the ROI after exclusion
-  int inliers = 0;     // within plane_inlier_m of the fitted face
+  int roi_points = 0;  // points in the ROI after exclusion (with weights: their sum, rounded)
+  int inliers = 0;     // within plane_inlier_m of the fitted face (with weights: their sum, rounded)
   double plane_rms_m = 0;
   // Outward unit normal of the fitted face (the plate's body is behind it) and a point on it.
   Eigen::Vector3d normal_world = Eigen::Vector3d::UnitZ();
@@ -171,7 +230,8 @@ struct PlateFit {
   // Face corners in the world frame, counter-clockwise about normal_world, starting at the corner
   // at (-L/2, -W/2) of the fitted rectangle's axes (its length axis ~ the ROI's x).
   std::array<Eigen::Vector3d, 4> corners_world{};
-  std::array<int, 4> edge_samples{};  // per edge (+x, +y, -x, -y of the ROI): points or voxels used
+  // Per edge (+x, +y, -x, -y of the ROI): points (with weights: their sum, rounded) or voxels used.
+  std::array<int, 4> edge_samples{};
   // kVoxelMeans: edges with fewer than min_edge_samples boundary voxels, left at their band-mean
   // place (biased outward by up to half a voxel).
   int edges_from_band_mean = 0;
@@ -179,13 +239,18 @@ struct PlateFit {
   // floor or bench as high as the face within the map's noise, a coplanar neighbour).
   bool at_roi_limit = false;
   int iterations = 0;
+  // Edges placed by the ray model on a support (PlateFitConfig::support_edges), +x, +y, -x, -y.
+  std::array<bool, 4> edge_on_support{};
+  int edges_on_support = 0;
 };
 
+// weights: nullptr (every point counts once), or n multiplicities (header, "Weights").
 // Errors (kInvalidArgument): a non-positive ROI size or margin, a config value out of range
-// (kVoxelMeans without a positive voxel_m, thresholds not positive). A plate with too few points is
-// not an error: PlateFit::seen is false and reason says why.
+// (kVoxelMeans without a positive voxel_m, thresholds not positive), a weight that is not finite and
+// positive (its index is named), weights with kVoxelMeans. A plate with too few points is not an
+// error: PlateFit::seen is false and reason says why.
 core::Expected<PlateFit> fit_plate(const CloudPoint* points, size_t n, const PlateRoi& roi,
-                                   const PlateFitConfig& config);
+                                   const PlateFitConfig& config, const float* weights = nullptr);
 
 // The ROI of plate i of the ground truth (4 cm in plane, 2 cm along the normal by default), with
 // every other plate of the file in PlateRoi::others.

@@ -45,6 +45,11 @@ using RunProgress = std::function<void(size_t frames_done, size_t frames_total)>
 core::Expected<RunSummary> write_run(const ScenarioSpec& spec, const RunOptions& options,
                                      const RunProgress& progress = {});
 
+// The text of weld_groundtruth.yaml (docs/simulator.md): the scenario's plates and seams in the
+// world frame of a run (T_world_scene = calibration's T_scene_world^-1). recon::parse_weld_groundtruth
+// reads it.
+std::string weld_groundtruth_yaml(const ScenarioSpec& spec, const Eigen::Isometry3d& T_world_scene);
+
 // 16-bit depth image of a metric one: raw = round(depth_m * depth_scale); 0 stays 0 (invalid) and
 // so does anything that does not fit in 16 bits (rather than clamping to a wrong depth).
 void depth_to_u16(const cv::Mat& depth_m, double depth_scale, cv::Mat* depth_u16);
