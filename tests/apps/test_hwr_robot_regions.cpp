@@ -3,8 +3,6 @@
 // seen up close), the simulator's joints as detections; the map store holds the regions and their
 // fine clouds, and the welding plates fitted in them come out within a few millimetres of the
 // truth — far closer than the coarse map's 2 cm voxels allow. Bad uses say what is wrong.
-#include <unistd.h>
-
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -13,6 +11,7 @@
 #include <gtest/gtest.h>
 
 #include "cli_run.hpp"
+#include "temp_dir.hpp"
 
 namespace {
 
@@ -22,36 +21,28 @@ const std::string kSim = HWR_BINARY_DIR "/apps/hwr-sim/hwr-sim";
 const std::string kEval = HWR_BINARY_DIR "/apps/hwr-eval/hwr-eval";
 const std::string kTeddy = HWR_DATA_DIR "/tum-fr3-teddy-200/rgbd_dataset_freiburg3_teddy";
 
-struct TempDir {
-  std::string path = ::testing::TempDir() + "hwr_robot_regions_" + std::to_string(::getpid());
-  TempDir() {
-    fs::remove_all(path);
-    fs::create_directories(path);
-  }
-  ~TempDir() { fs::remove_all(path); }
-};
-
 TEST(
     HwrRobotRegions,
     GivenTheSimulatorsJointsAsDetectionsThenTheStoreKeepsTheirFineCloudsAndTheirPlatesAreMillimetreAccurate) {
   if (!fs::exists(kSim)) GTEST_SKIP() << "no simulator in this build";
-  TempDir tmp;
+  hwr::testing::TempDir dir("hwr_robot_regions");
+  const std::string& tmp_path = dir.path();
   // The truth files (no images: a second) and the robot rendering the same scenario live.
   const auto sim =
-      hwr::testing::run_cli(kSim, "--scenario lab --no-images --duration 40 --out " + tmp.path + "/sim");
+      hwr::testing::run_cli(kSim, "--scenario lab --no-images --duration 40 --out " + tmp_path + "/sim");
   ASSERT_EQ(sim.exit_code, 0) << sim.out;
   const auto robot =
       hwr::testing::run_cli(kRobot, "--source sim:lab --duration 40 --quiet --regions truth --map-out " +
-                                        tmp.path + "/map --gt-out " + tmp.path + "/gt.txt");
+                                        tmp_path + "/map --gt-out " + tmp_path + "/gt.txt");
   ASSERT_EQ(robot.exit_code, 0) << robot.out;
   EXPECT_NE(robot.out.find("welding regions: the simulator's 9 joints as detections"), std::string::npos)
       << robot.out;
   EXPECT_NE(robot.out.find("map: welding regions="), std::string::npos) << robot.out;
-  EXPECT_TRUE(fs::exists(tmp.path + "/map/segments/seg_000000/fine.bin"));
+  EXPECT_TRUE(fs::exists(tmp_path + "/map/segments/seg_000000/fine.bin"));
 
   const auto ae =
-      hwr::testing::run_cli(kEval, "ae --groundtruth " + tmp.path + "/sim/weld_groundtruth.yaml --map " +
-                                       tmp.path + "/map --truth-traj " + tmp.path + "/gt.txt");
+      hwr::testing::run_cli(kEval, "ae --groundtruth " + tmp_path + "/sim/weld_groundtruth.yaml --map " +
+                                       tmp_path + "/map --truth-traj " + tmp_path + "/gt.txt");
   ASSERT_EQ(ae.exit_code, 0) << ae.out;
   std::printf("%s", ae.out.c_str());
   const auto kv = hwr::testing::key_values(ae.out);
@@ -64,8 +55,8 @@ TEST(
   EXPECT_GT(std::atoll(kv.at("fine_points").c_str()), 100000);
   // With segmentation (segments chained by their junctions) the same plates, as accurate.
   const auto seg =
-      hwr::testing::run_cli(kEval, "ae --groundtruth " + tmp.path + "/sim/weld_groundtruth.yaml --map " +
-                                       tmp.path + "/map --truth-traj " + tmp.path + "/gt.txt --segmented");
+      hwr::testing::run_cli(kEval, "ae --groundtruth " + tmp_path + "/sim/weld_groundtruth.yaml --map " +
+                                       tmp_path + "/map --truth-traj " + tmp_path + "/gt.txt --segmented");
   ASSERT_EQ(seg.exit_code, 0) << seg.out;
   EXPECT_LT(std::atof(hwr::testing::key_values(seg.out).at("ae_mm").c_str()), 3.0);
 }

@@ -22,25 +22,14 @@
 
 #include "hwr/recon/plate_fit.hpp"
 #include "hwr/recon/voxel_map.hpp"
+#include "plate_truth.hpp"
 
 namespace hwr::recon {
 namespace {
 
 namespace fs = std::filesystem;
 
-PlateTruth make_plate(const std::string& name, const Eigen::Vector3d& size_m,
-                      const Eigen::Isometry3d& T_world_plate) {
-  PlateTruth p;
-  p.name = name;
-  p.size_m = size_m;
-  p.T_world_plate = T_world_plate;
-  for (int i = 0; i < 8; ++i) {
-    const Eigen::Vector3d local(((i >> 2) & 1 ? 0.5 : -0.5) * size_m.x(),
-                                ((i >> 1) & 1 ? 0.5 : -0.5) * size_m.y(), (i & 1 ? 0.5 : -0.5) * size_m.z());
-    p.corners_world[static_cast<size_t>(i)] = T_world_plate * local;
-  }
-  return p;
-}
+using hwr::testing::make_plate;
 
 Eigen::Isometry3d pose(const Eigen::Vector3d& t, const Eigen::Matrix3d& R) {
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();

@@ -13,6 +13,7 @@
 
 #include "hwr/recon/region_ae.hpp"
 #include "hwr/recon/truth_weld_regions.hpp"
+#include "plate_truth.hpp"
 
 namespace hwr::recon {
 namespace {
@@ -26,19 +27,7 @@ Eigen::Isometry3d pose(const Eigen::Vector3d& t, double yaw, double pitch = 0.0)
   return T;
 }
 
-PlateTruth plate(const std::string& name, const Eigen::Vector3d& size,
-                 const Eigen::Isometry3d& T_world_plate) {
-  PlateTruth p;
-  p.name = name;
-  p.size_m = size;
-  p.T_world_plate = T_world_plate;
-  for (int i = 0; i < 8; ++i) {
-    const Eigen::Vector3d local((i & 4 ? 0.5 : -0.5) * size.x(), (i & 2 ? 0.5 : -0.5) * size.y(),
-                                (i & 1 ? 0.5 : -0.5) * size.z());
-    p.corners_world[static_cast<size_t>(i)] = T_world_plate * local;
-  }
-  return p;
-}
+using hwr::testing::make_plate;
 
 // Two butt plates side by side on a bench, a third plate far away (no region holds it), and dense
 // samples (1.5 mm, 0.5 mm noise) of the pair's top faces and the bench around them.
@@ -51,9 +40,9 @@ World butt_world() {
   World w;
   const Eigen::Isometry3d T_world_joint = pose(Eigen::Vector3d(2.0, 1.0, 0.85), 0.4);
   w.gt.plates = {
-      plate("j/left", {0.5, 0.25, 0.01}, T_world_joint * pose(Eigen::Vector3d(0, 0.1265, -0.005), 0)),
-      plate("j/right", {0.5, 0.25, 0.01}, T_world_joint * pose(Eigen::Vector3d(0, -0.1265, -0.005), 0)),
-      plate("far/base", {0.4, 0.2, 0.01}, pose(Eigen::Vector3d(9, 9, 0.005), 0))};
+      make_plate("j/left", {0.5, 0.25, 0.01}, T_world_joint * pose(Eigen::Vector3d(0, 0.1265, -0.005), 0)),
+      make_plate("j/right", {0.5, 0.25, 0.01}, T_world_joint * pose(Eigen::Vector3d(0, -0.1265, -0.005), 0)),
+      make_plate("far/base", {0.4, 0.2, 0.01}, pose(Eigen::Vector3d(9, 9, 0.005), 0))};
   SeamTruth seam;
   seam.name = "j";
   seam.type = SeamType::kButt;
