@@ -154,10 +154,18 @@ JunctionResult JunctionAligner::align(const estimation::Keyframe& a, const estim
     if (innovation.info() == Eigen::Success && innovation.isPositive()) {
       out.fusion_chi2 = z.dot(innovation.solve(z));
       if (std::isfinite(out.fusion_chi2) && out.fusion_chi2 <= m.config.fusion_gate_chi2) {
-        // Equivalent gain form: dxi* = P (P + M)^-1 z.
-        const Vec6 dxi = P * innovation.solve(z);
-        out.T_a_b = (core::se3_exp(dxi) * T_b_a_odo).inverse();
-        out.fused = true;
+        if (out.ndt_used || m.config.fuse_orb_alone) {
+          // Equivalent gain form: dxi* = P (P + M)^-1 z.
+          const Vec6 dxi = P * innovation.solve(z);
+          out.T_a_b = (core::se3_exp(dxi) * T_b_a_odo).inverse();
+          out.fused = true;
+        } else {
+          // ORB alone agrees with the odometry: it re-measures what the tracker measured from the
+          // same keypoints of the same two keyframes, so it adds no independent information
+          // (junction.hpp); the odometry stays.
+          out.T_a_b = T_a_b_odometry;
+          out.odometry_kept = true;
+        }
       }
     }
   }

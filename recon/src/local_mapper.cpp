@@ -180,7 +180,8 @@ void LocalMapper::fuse(const estimation::KeyframeStore& keyframes, int id, Segme
                      r.seed == JunctionSeed::kOrb ? "orb" : "odometry", r.ndt_used ? "used" : "not used",
                      r.ndt.converged ? "converged" : ndt_failure_name(r.ndt.failure), r.ndt.iterations,
                      junction_cloud_prev_.size, junction_cloud.size, r.orb_rms_px, r.ndt_orb_rms_px,
-                     r.fused ? "fused" : "not fused", r.fusion_chi2, ms);
+                     r.fused ? "fused" : (r.odometry_kept ? "kept (ORB alone)" : "not fused"), r.fusion_chi2,
+                     ms);
         T_a_b = r.T_a_b;
         T_a_b_measured = r.T_a_b_measured;
         junction.fused = r.fused;

@@ -30,7 +30,8 @@ void read_local_mapper_config(core::ConfigMap map, LocalMapperConfig* c) {
       .get("odometry_sigma_rad", &c->junction.odometry_sigma_rad)
       .get("odometry_sigma_m", &c->junction.odometry_sigma_m)
       .get("orb_covariance_scale", &c->junction.orb_covariance_scale)
-      .get("fusion_gate_chi2", &c->junction.fusion_gate_chi2);
+      .get("fusion_gate_chi2", &c->junction.fusion_gate_chi2)
+      .get("fuse_orb_alone", &c->junction.fuse_orb_alone);
   core::ConfigMap fine = map.child("fine");
   fine.get("enabled", &c->fine.enabled)
       .get("voxel_m", &c->fine.voxels.voxel_m)

@@ -185,6 +185,9 @@ TEST(LocalMapper, GivenOdometryAsGoodAsItsPriorThenFusedJunctionsBeatTheOdometry
   const double sigma_m = 0.0015, sigma_rad = 0.0006;
   config.junction.odometry_sigma_m = std::sqrt(2.0) * sigma_m;
   config.junction.odometry_sigma_rad = std::sqrt(2.0) * sigma_rad;
+  // This odometry's noise is drawn independently of the images, so an ORB pose alone is
+  // independent information too (a real tracker's is not: junction.hpp, fuse_orb_alone).
+  config.junction.fuse_orb_alone = true;
   const MapperRun run = run_mapper(config, sigma_m, sigma_rad);
   const LabKeyframes& lab = lab_keyframes();
   ASSERT_GE(run.segments.size(), 6u);
@@ -219,6 +222,21 @@ TEST(LocalMapper, GivenOdometryAsGoodAsItsPriorThenFusedJunctionsBeatTheOdometry
   EXPECT_LT(fused_m, 1.15 * measured_m);
   EXPECT_LT(fused_rad, odometry_rad);
   EXPECT_LT(fused_rad, 1.5 * measured_rad);
+  // The default: an ORB pose that NDT did not refine is not fused; such a junction keeps the
+  // odometry (or, gated out, the measurement), and only NDT's poses are fused.
+  config.junction.fuse_orb_alone = false;
+  const MapperRun kept = run_mapper(config, sigma_m, sigma_rad);
+  ASSERT_EQ(kept.segments.size(), run.segments.size());
+  for (size_t s = 1; s < kept.segments.size(); ++s) {
+    const JunctionRecord& j = kept.segments[s].junction;
+    if (j.fused) {
+      EXPECT_TRUE(j.ndt_converged) << "junction " << s;
+    } else {
+      EXPECT_TRUE(j.T_prev_segment_segment.isApprox(j.T_prev_segment_segment_odometry, 1e-12) ||
+                  j.T_prev_segment_segment.isApprox(j.T_prev_segment_segment_measured, 1e-12))
+          << "junction " << s;
+    }
+  }
   // Disabled, the junction is the measurement alone (the paper's method).
   config.junction.fuse_odometry = false;
   const MapperRun paper = run_mapper(config, sigma_m, sigma_rad);

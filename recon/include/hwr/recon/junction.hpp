@@ -13,6 +13,9 @@
 // the segmented trajectory. With correct covariances the fused junction is, in expectation, no worse
 // than the better of the two; the prior's sigmas and orb_covariance_scale are fixed settings, so on
 // a given scene it can be slightly worse than the measurement alone (docs/reconstruction.md).
+// Only NDT's pose (the depth geometry) is fused by default: an ORB pose alone re-measures what the
+// tracker measured from the same keypoints, so when it agrees with the odometry the odometry stays,
+// and when it does not (gated out: the tracker lost or jumped) the measurement replaces it.
 
 #include <Eigen/Geometry>
 #include <memory>
@@ -57,6 +60,12 @@ struct JunctionConfig {
   // A measurement whose Mahalanobis distance to the odometry (6 dof) exceeds this is not fused:
   // one of the two is wrong, and the measurement (hundreds of inliers, checked by NDT) is kept.
   double fusion_gate_chi2 = 22.46;  // 99.9 %, 6 dof
+  // An ORB pose that NDT did not refine (NDT degenerate, not converged, or not agreeing) and that
+  // passes the gate: false keeps the odometry, true fuses it too. Its error is largely the
+  // tracker's own (the same keypoints of the same two keyframes: outdoors, cuts whose measurement
+  // and odometry are off by the same 0.06-0.07 deg), so fusing it as independent information moves
+  // each junction by a fresh error that chains over the cuts (docs/reconstruction.md).
+  bool fuse_orb_alone = false;
 };
 
 enum class JunctionSeed : uint8_t { kOrb, kOdometry };
@@ -72,7 +81,8 @@ struct JunctionResult {
   // T_a_b fuses it with the odometry (false: gated out, disabled, or no ORB covariance).
   Eigen::Isometry3d T_a_b_measured = Eigen::Isometry3d::Identity();
   bool fused = false;
-  double fusion_chi2 = 0;  // Mahalanobis distance^2 of measurement vs odometry
+  bool odometry_kept = false;  // the ORB pose alone agreed with the odometry, which stays (fuse_orb_alone)
+  double fusion_chi2 = 0;      // Mahalanobis distance^2 of measurement vs odometry
 };
 
 class JunctionAligner {
