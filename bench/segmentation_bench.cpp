@@ -30,6 +30,7 @@
 #include "bench_command.hpp"
 #include "bench_sequences.hpp"
 #include "hwr/core/config.hpp"
+#include "hwr/core/malloc_policy.hpp"
 #include "hwr/estimation/estimator_config.hpp"
 #include "hwr/estimation/offline_run.hpp"
 #include "hwr/estimation/trajectory_metrics.hpp"
@@ -195,6 +196,11 @@ struct Bin {
 };
 
 int run_segmentation(int argc, char** argv) {
+  // The robot's heap policy (hwr-robot sets it too): the RSS figures are the robot's.
+  if (const auto st = core::fix_malloc_mmap_threshold(); !st.ok()) {
+    std::fprintf(stderr, "hwr-bench segmentation: %s\n", st.message().c_str());
+    return 1;
+  }
   std::string sequences = "lab,outdoor", store_dir;
   double duration_s = 0;
   estimation::PoseEstimatorConfig est_cfg;

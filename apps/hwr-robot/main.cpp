@@ -23,6 +23,7 @@
 
 #include "hwr/core/file_io.hpp"
 #include "hwr/core/log.hpp"
+#include "hwr/core/malloc_policy.hpp"
 #include "hwr/core/scheduler.hpp"
 #include "hwr/core/time.hpp"
 #include "hwr/core/tum_trajectory.hpp"
@@ -971,7 +972,7 @@ int run(const Args& args) {
     const auto& f = mapper->fine_map().counters();
     if (f.regions_added + f.detections_invalid + f.regions_refused > 0) {
       std::printf("map: welding regions=%" PRIu64 " (detections %" PRIu64 ", merged %" PRIu64
-                  ", refused %" PRIu64 ", invalid %" PRIu64 ") fine points merged=%" PRIu64 " in %" PRIu64
+                  ", refused %" PRIu64 ", invalid %" PRIu64 ") fine points offered=%" PRIu64 " in %" PRIu64
                   " keyframes, fine voxels=%" PRIu64 " (%.0f mm, refused full %" PRIu64 ")\n",
                   f.regions_added, robot.region_detections, f.detections_merged, f.regions_refused,
                   f.detections_invalid, f.points_inserted, f.keyframes_in_view, m.fine_points_closed,
@@ -1126,6 +1127,9 @@ int run(const Args& args) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  // Before any thread: segments' buffers are mmap'd and given back, so the resident size stays flat.
+  if (const auto st = hwr::core::fix_malloc_mmap_threshold(); !st.ok())
+    std::fprintf(stderr, "hwr-robot: %s (continuing with glibc's defaults)\n", st.message().c_str());
   Args args;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];

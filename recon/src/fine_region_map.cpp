@@ -34,7 +34,7 @@ bool box_pixels(const Eigen::Isometry3d& T_cam_box, const Eigen::Vector3d& half,
     const Eigen::Vector3d c = T_cam_box * box_corner(half, i);
     z_lo = std::min(z_lo, c.z());
     z_hi = std::max(z_hi, c.z());
-    if (c.z() < min_z) {
+    if (!(c.z() >= std::max(min_z, 1e-6))) {  // also z = 0 when min_z is 0: no projection
       behind = true;
       continue;
     }
@@ -48,10 +48,12 @@ bool box_pixels(const Eigen::Isometry3d& T_cam_box, const Eigen::Vector3d& half,
     return true;
   }
   // Pixel centres at integer coordinates: pixel u covers [u - 0.5, u + 0.5).
-  const int u0 = std::max(0, static_cast<int>(std::floor(u_lo))),
-            v0 = std::max(0, static_cast<int>(std::floor(v_lo)));
-  const int u1 = std::min(K.width, static_cast<int>(std::ceil(u_hi)) + 1);
-  const int v1 = std::min(K.height, static_cast<int>(std::ceil(v_hi)) + 1);
+  // Clamped in double first: a corner just in front of the camera projects far beyond int's range.
+  const double w = K.width, h = K.height;
+  const int u0 = static_cast<int>(std::clamp(std::floor(u_lo), 0.0, w)),
+            v0 = static_cast<int>(std::clamp(std::floor(v_lo), 0.0, h));
+  const int u1 = static_cast<int>(std::clamp(std::ceil(u_hi) + 1, 0.0, w));
+  const int v1 = static_cast<int>(std::clamp(std::ceil(v_hi) + 1, 0.0, h));
   if (u0 >= u1 || v0 >= v1) return false;
   *rect = cv::Rect(u0, v0, u1 - u0, v1 - v0);
   return true;

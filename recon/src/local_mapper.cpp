@@ -185,6 +185,8 @@ void LocalMapper::fuse(const estimation::KeyframeStore& keyframes, int id, Segme
         T_a_b = r.T_a_b;
         T_a_b_measured = r.T_a_b_measured;
         junction.fused = r.fused;
+        junction.ndt_used = r.ndt_used;
+        junction.odometry_kept = r.odometry_kept;
         junction.valid = r.seed == JunctionSeed::kOrb || r.ndt_used;
         junction.orb_matches = r.orb_matches;
         junction.orb_inliers = r.orb_inliers;

@@ -209,7 +209,7 @@ core::Status remove_temporaries(const std::string& dir) {
 // ---- store.yaml ----
 
 // A new store is created at kStoreFormatVersion whatever the argument's format_version (its
-// default is 1), as long as that is not newer than this build.
+// default is kStoreFormatVersion), as long as that is not newer than this build.
 core::Status validate_metadata(const StoreMetadata& m) {
   if (m.format_version < 1 || m.format_version > kStoreFormatVersion) {
     return core::InvalidArgument("map store: this build writes format_version " +
@@ -338,6 +338,8 @@ std::string segment_yaml_text(const SegmentRecord& s, uint64_t keyframes_bin_byt
   t += "  T_prev_segment_segment_odometry: " + yaml_pose(j.T_prev_segment_segment_odometry) + "\n";
   t += "  T_prev_segment_segment_measured: " + yaml_pose(j.T_prev_segment_segment_measured) + "\n";
   appendf(&t, "  fused: %s\n", j.fused ? "true" : "false");
+  appendf(&t, "  ndt_used: %s\n  odometry_kept: %s\n", j.ndt_used ? "true" : "false",
+          j.odometry_kept ? "true" : "false");
   appendf(&t, "keyframes_bin_bytes: %" PRIu64 "\nkeyframes_bin_crc32: %" PRIu32 "\n", keyframes_bin_bytes,
           keyframes_crc32);
   appendf(&t, "cloud_bin_bytes: %" PRIu64 "\ncloud_bin_crc32: %" PRIu32 "\n", cloud_bin_bytes, cloud_crc32);
@@ -407,6 +409,7 @@ core::Expected<SegmentYaml> read_segment_yaml(const std::string& path) {
   read_pose(j, "T_prev_segment_segment_odometry", &jr.T_prev_segment_segment_odometry);
   read_pose(j, "T_prev_segment_segment_measured", &jr.T_prev_segment_segment_measured);
   j.require("fused", &jr.fused);
+  j.get("ndt_used", &jr.ndt_used).get("odometry_kept", &jr.odometry_kept);  // optional: later than format 2
   root.require("keyframes_bin_bytes", &y.keyframes_bin_bytes);
   read_u32(root, "keyframes_bin_crc32", &y.keyframes_bin_crc32);
   root.require("cloud_bin_bytes", &y.cloud_bin_bytes);

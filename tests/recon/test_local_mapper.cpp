@@ -227,16 +227,25 @@ TEST(LocalMapper, GivenOdometryAsGoodAsItsPriorThenFusedJunctionsBeatTheOdometry
   config.junction.fuse_orb_alone = false;
   const MapperRun kept = run_mapper(config, sigma_m, sigma_rad);
   ASSERT_EQ(kept.segments.size(), run.segments.size());
+  int kept_odometry = 0, fused_ndt = 0;
   for (size_t s = 1; s < kept.segments.size(); ++s) {
     const JunctionRecord& j = kept.segments[s].junction;
+    EXPECT_FALSE(j.fused && j.odometry_kept) << "junction " << s;
     if (j.fused) {
-      EXPECT_TRUE(j.ndt_converged) << "junction " << s;
-    } else {
-      EXPECT_TRUE(j.T_prev_segment_segment.isApprox(j.T_prev_segment_segment_odometry, 1e-12) ||
-                  j.T_prev_segment_segment.isApprox(j.T_prev_segment_segment_measured, 1e-12))
+      EXPECT_TRUE(j.ndt_used) << "junction " << s;
+      ++fused_ndt;
+    } else if (j.odometry_kept) {
+      EXPECT_FALSE(j.ndt_used) << "junction " << s;
+      EXPECT_TRUE(j.T_prev_segment_segment.isApprox(j.T_prev_segment_segment_odometry, 1e-12))
           << "junction " << s;
+      EXPECT_FALSE(j.T_prev_segment_segment.isApprox(j.T_prev_segment_segment_measured, 1e-9))
+          << "junction " << s;
+      ++kept_odometry;
     }
   }
+  // The lab walk has both kinds (measured: 6 fused, 4 kept over 10 junctions).
+  EXPECT_GT(kept_odometry, 0);
+  EXPECT_GT(fused_ndt, 0);
   // Disabled, the junction is the measurement alone (the paper's method).
   config.junction.fuse_odometry = false;
   const MapperRun paper = run_mapper(config, sigma_m, sigma_rad);

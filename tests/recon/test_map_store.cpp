@@ -194,6 +194,8 @@ SegmentRecord make_segment(uint32_t id, int n_keyframes, int n_points) {
   j.T_prev_segment_segment_odometry = random_pose(&rng);
   j.T_prev_segment_segment_measured = random_pose(&rng);
   j.fused = id % 2 == 0;
+  j.ndt_used = id % 4 == 0;
+  j.odometry_kept = id % 4 == 1;
   for (int k = 0; k < n_keyframes; ++k) {
     StoredKeyframe kf;
     kf.id = static_cast<int32_t>(10 * id) + k;
@@ -298,7 +300,7 @@ std::string first_difference(const SegmentRecord& a, const SegmentRecord& b) {
       ja.keyframe_after != jb.keyframe_after || ja.orb_matches != jb.orb_matches ||
       ja.orb_inliers != jb.orb_inliers || ja.ndt_converged != jb.ndt_converged ||
       ja.ndt_iterations != jb.ndt_iterations || !same_bits(ja.ndt_fitness, jb.ndt_fitness) ||
-      ja.fused != jb.fused) {
+      ja.fused != jb.fused || ja.ndt_used != jb.ndt_used || ja.odometry_kept != jb.odometry_kept) {
     return "junction scalars";
   }
   if (!same_pose(ja.T_prev_segment_segment, jb.T_prev_segment_segment))
@@ -964,7 +966,7 @@ TEST(MapStore, GivenAStoreCreatedAtFormat1ThenItOpensKeepsItsStoreYamlAndTakesFo
             std::string::npos);
   EXPECT_TRUE(store->read_segment(0).ok());
 
-  // New stores: created at format 2 whatever the (default 1) argument asks, unless it asks for newer.
+  // New stores: created at format 2 whatever older format the argument asks, unless it asks for newer.
   StoreMetadata old_default = test_metadata();
   old_default.format_version = 1;
   auto created = MapStore::open(tmp.path() + "/new_store", old_default);

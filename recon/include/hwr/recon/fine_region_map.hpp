@@ -54,7 +54,7 @@ struct FineRegionCounters {
   uint64_t regions_refused = 0;     // the table was full
   uint64_t detections_invalid = 0;  // non-positive or non-finite half sizes, a non-rigid pose
   uint64_t keyframes_in_view = 0;   // keyframes that saw at least one active region
-  uint64_t points_inserted = 0;     // into the fine map (merged or new voxel)
+  uint64_t points_inserted = 0;     // handed to the fine map (merged, new, or refused by its voxel map)
   uint64_t cloud_errors = 0;
 };
 

@@ -78,7 +78,8 @@ struct JunctionResult {
   bool ndt_used = false;                      // T_a_b is NDT's result (else the seed)
   double orb_rms_px = 0, ndt_orb_rms_px = 0;  // ORB inliers' reprojection RMS under each pose
   // The measurement before fusion (ORB or NDT; the odometry when neither is trusted) and whether
-  // T_a_b fuses it with the odometry (false: gated out, disabled, or no ORB covariance).
+  // T_a_b fuses it with the odometry (false: gated out, disabled, no ORB covariance, or an ORB pose
+  // alone that agreed with the odometry: odometry_kept).
   Eigen::Isometry3d T_a_b_measured = Eigen::Isometry3d::Identity();
   bool fused = false;
   bool odometry_kept = false;  // the ORB pose alone agreed with the odometry, which stays (fuse_orb_alone)

@@ -82,6 +82,8 @@ struct JunctionRecord {
   // The ORB/NDT measurement alone (before fusion with the odometry), and whether it was fused.
   Eigen::Isometry3d T_prev_segment_segment_measured = Eigen::Isometry3d::Identity();
   bool fused = false;
+  bool ndt_used = false;       // the measurement is NDT's pose (else ORB's, or the odometry's)
+  bool odometry_kept = false;  // ORB's pose alone agreed with the odometry, which was kept (junction.hpp)
 };
 
 struct SegmentRecord {
@@ -94,7 +96,7 @@ struct SegmentRecord {
   int64_t t_first_ns = 0, t_last_ns = 0;
   std::vector<StoredKeyframe> keyframes;
   std::vector<CloudPoint> points_segment;  // in the segment frame
-  // Welding regions (weld_region.hpp, fine_region_map.hpp): the regions this segment's keyframes saw,
+  // Welding regions (weld_region.hpp, fine_region_map.hpp): the regions with fine voxels in this segment,
   // and the fine cloud inside them: voxel means of side fine_voxel_m in the segment frame, with the
   // number of points merged into each (fine_counts[i] >= 1 for fine_points_segment[i]). Empty (and
   // fine_voxel_m 0) when the mapper kept no fine cloud.
