@@ -15,7 +15,8 @@ Status fix_malloc_mmap_threshold(size_t mmap_threshold_bytes) {
     return InvalidArgument("malloc policy: mmap threshold must be in (0, 32 MiB], got " +
                            std::to_string(mmap_threshold_bytes));
   if (mallopt(M_MMAP_THRESHOLD, static_cast<int>(mmap_threshold_bytes)) != 1)
-    return Internal("malloc policy: mallopt(M_MMAP_THRESHOLD) refused " + std::to_string(mmap_threshold_bytes));
+    return Internal("malloc policy: mallopt(M_MMAP_THRESHOLD) refused " +
+                    std::to_string(mmap_threshold_bytes));
 #else
   (void)mmap_threshold_bytes;
 #endif
