@@ -409,7 +409,8 @@ core::Expected<SegmentYaml> read_segment_yaml(const std::string& path) {
   read_pose(j, "T_prev_segment_segment_odometry", &jr.T_prev_segment_segment_odometry);
   read_pose(j, "T_prev_segment_segment_measured", &jr.T_prev_segment_segment_measured);
   j.require("fused", &jr.fused);
-  j.get("ndt_used", &jr.ndt_used).get("odometry_kept", &jr.odometry_kept);  // optional: early format-2 files lack them
+  j.get("ndt_used", &jr.ndt_used)
+      .get("odometry_kept", &jr.odometry_kept);  // optional: early format-2 files lack them
   root.require("keyframes_bin_bytes", &y.keyframes_bin_bytes);
   read_u32(root, "keyframes_bin_crc32", &y.keyframes_bin_crc32);
   root.require("cloud_bin_bytes", &y.cloud_bin_bytes);
