@@ -11,11 +11,6 @@
 namespace hwr::recon {
 namespace {
 
-bool inside_box(const Eigen::Vector3d& p_region, const Eigen::Vector3d& half) {
-  return std::fabs(p_region.x()) <= half.x() && std::fabs(p_region.y()) <= half.y() &&
-         std::fabs(p_region.z()) <= half.z();
-}
-
 // The 8 corners of a box of half sizes `half` centred at the origin of its frame.
 Eigen::Vector3d box_corner(const Eigen::Vector3d& half, int i) {
   return Eigen::Vector3d((i & 4) ? half.x() : -half.x(), (i & 2) ? half.y() : -half.y(),
@@ -107,9 +102,9 @@ int64_t FineRegionMap::add(const WeldRegion& detection, const Eigen::Isometry3d&
   const Eigen::Isometry3d T_world_region = T_world_cam * detection.T_cam_region;
   const Eigen::Vector3d centre = T_world_region.translation();
   for (Active& a : active_) {
-    const bool ours = inside_box(a.T_region_world * centre, a.region.half_size_m);
+    const bool ours = inside_region_box(a.T_region_world * centre, a.region.half_size_m);
     const bool theirs =
-        inside_box(T_world_region.inverse(Eigen::Isometry) * a.T_world_region.translation(), h);
+        inside_region_box(T_world_region.inverse(Eigen::Isometry) * a.T_world_region.translation(), h);
     if (!ours && !theirs) continue;
     ++counters_.detections_merged;
     if (detection.T_cam_region.translation().norm() + kReanchorM <
@@ -193,7 +188,7 @@ void FineRegionMap::insert_keyframe(const cv::Mat& bgr, const cv::Mat& depth_m,
     const CloudPoint& p = cloud->points[i];
     const Eigen::Vector3d p_segment(p.x_m, p.y_m, p.z_m);
     for (Active& a : active_) {
-      if (a.in_view && inside_box(a.T_region_segment * p_segment, a.region.half_size_m)) {
+      if (a.in_view && inside_region_box(a.T_region_segment * p_segment, a.region.half_size_m)) {
         kept[n++] = p;
         ++a.keyframe_points;
         break;
@@ -235,7 +230,7 @@ void FineRegionMap::take_segment(const Eigen::Isometry3d& T_world_segment,
     counts->push_back(v.count);
     const Eigen::Vector3d q(v.x_m, v.y_m, v.z_m);
     for (Active& a : active_)
-      if (inside_box(a.T_region_segment * q, a.region.half_size_m)) ++a.segment_points;
+      if (inside_region_box(a.T_region_segment * q, a.region.half_size_m)) ++a.segment_points;
   }
   const Eigen::Isometry3d T_segment_world = T_world_segment.inverse(Eigen::Isometry);
   for (const Active& a : active_) {

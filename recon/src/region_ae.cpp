@@ -10,10 +10,6 @@
 namespace hwr::recon {
 namespace {
 
-bool inside_box(const Eigen::Vector3d& p, const Eigen::Vector3d& half) {
-  return std::fabs(p.x()) <= half.x() && std::fabs(p.y()) <= half.y() && std::fabs(p.z()) <= half.z();
-}
-
 // A region of the map, placed, with its detection's truth.
 struct PlacedRegion {
   const StoredWeldRegion* stored = nullptr;
@@ -90,8 +86,8 @@ core::Expected<RegionAeReport> compute_region_ae(const std::vector<FineSegmentVi
     const Eigen::Vector3d centre = gt.plates[i].T_world_plate.translation();
     const PlacedRegion* best = nullptr;
     for (const PlacedRegion* r : known) {
-      if (!inside_box(r->T_world_region_true.inverse(Eigen::Isometry) * centre,
-                      r->stored->region.half_size_m))
+      if (!inside_region_box(r->T_world_region_true.inverse(Eigen::Isometry) * centre,
+                             r->stored->region.half_size_m))
         continue;
       if (best == nullptr || r->fine_points > best->fine_points) best = r;
     }

@@ -12,6 +12,7 @@
 
 #include <array>
 #include <cstddef>
+#include <cmath>
 #include <cstdint>
 #include <string>
 
@@ -39,6 +40,12 @@ struct WeldRegion {
   Eigen::Isometry3d T_cam_region = Eigen::Isometry3d::Identity();
   Eigen::Vector3d half_size_m = Eigen::Vector3d::Zero();
 };
+
+// Whether a point in a region's box frame lies inside (or on) its box of half sizes half_size_m.
+inline bool inside_region_box(const Eigen::Vector3d& p_region, const Eigen::Vector3d& half_size_m) {
+  return std::fabs(p_region.x()) <= half_size_m.x() && std::fabs(p_region.y()) <= half_size_m.y() &&
+         std::fabs(p_region.z()) <= half_size_m.z();
+}
 
 // Copies at most kWeldRegionLabelBytes - 1 bytes of `text` (the rest is cut) and NUL-terminates.
 void set_weld_region_label(WeldRegion* region, const std::string& text);
