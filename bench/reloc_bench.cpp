@@ -440,6 +440,9 @@ core::Status run_start(const Options& o, Prior* prior, recon::Relocalizer* reloc
                 "; another pass's keyframe: error %.2f cm %.3f deg (the passes disagree by %.2f cm %.3f deg)",
                 e_other.cm, e_other.deg, spread.cm, spread.deg);
           }
+          // Why an ORB refinement or the polish was refused, also when the fit was accepted.
+          if (!r.orb_refine_failure.empty())
+            std::printf("; ORB refinement: %s", r.orb_refine_failure.c_str());
           std::printf("\n");
         }
       }
