@@ -604,14 +604,18 @@ core::Expected<std::vector<SegmentSummary>> MapStore::list_segments() const {
 }
 
 core::Expected<SegmentRecord> MapStore::read_segment(uint32_t segment_id) const {
-  return read_segment_files(segment_id, /*with_cloud=*/true);
+  return read_segment_files(segment_id, Parts{});
 }
 
 core::Expected<SegmentRecord> MapStore::read_keyframes(uint32_t segment_id) const {
-  return read_segment_files(segment_id, /*with_cloud=*/false);
+  return read_segment_files(segment_id, Parts{true, false, false});
 }
 
-core::Expected<SegmentRecord> MapStore::read_segment_files(uint32_t segment_id, bool with_cloud) const {
+core::Expected<SegmentRecord> MapStore::read_cloud(uint32_t segment_id) const {
+  return read_segment_files(segment_id, Parts{false, true, false});
+}
+
+core::Expected<SegmentRecord> MapStore::read_segment_files(uint32_t segment_id, Parts parts) const {
   const std::string seg_dir = join(dir_, kSegmentsDir) + "/" + segment_dir_name(segment_id);
   if (!is_directory(seg_dir)) {
     return core::NotFound("map store " + dir_ + ": no segment " + std::to_string(segment_id) + " (" +
@@ -625,19 +629,21 @@ core::Expected<SegmentRecord> MapStore::read_segment_files(uint32_t segment_id, 
                              " does not match its directory");
   }
   SegmentRecord out = std::move(y->record);
-  const std::string kf_path = join(seg_dir, kKeyframesBin);
-  HWR_RETURN_IF_ERROR(check_file_size(kf_path, y->keyframes_bin_bytes));
-  HWR_RETURN_IF_ERROR(store_detail::read_keyframes_file(kf_path, metadata_.descriptor_bytes,
-                                                        BinExpectation{y->keyframes, y->keyframes_bin_crc32},
-                                                        &out.keyframes));
-  // The index (read_keyframes) has fine_voxel_m from segment.yaml but opens neither cloud.bin nor
-  // fine.bin.
-  if (!with_cloud) return out;
-  const std::string cloud_path = join(seg_dir, kCloudBin);
-  HWR_RETURN_IF_ERROR(check_file_size(cloud_path, y->cloud_bin_bytes));
-  HWR_RETURN_IF_ERROR(store_detail::read_cloud_file(cloud_path, BinExpectation{y->points, y->cloud_bin_crc32},
-                                                    &out.points_segment));
-  if (y->format_version < kFirstFineFormatVersion) return out;  // no fine data: the vectors stay empty
+  if (parts.keyframes) {
+    const std::string kf_path = join(seg_dir, kKeyframesBin);
+    HWR_RETURN_IF_ERROR(check_file_size(kf_path, y->keyframes_bin_bytes));
+    HWR_RETURN_IF_ERROR(store_detail::read_keyframes_file(
+        kf_path, metadata_.descriptor_bytes, BinExpectation{y->keyframes, y->keyframes_bin_crc32},
+        &out.keyframes));
+  }
+  if (parts.cloud) {
+    const std::string cloud_path = join(seg_dir, kCloudBin);
+    HWR_RETURN_IF_ERROR(check_file_size(cloud_path, y->cloud_bin_bytes));
+    HWR_RETURN_IF_ERROR(store_detail::read_cloud_file(
+        cloud_path, BinExpectation{y->points, y->cloud_bin_crc32}, &out.points_segment));
+  }
+  // fine_voxel_m comes from segment.yaml whichever files are read.
+  if (!parts.fine || y->format_version < kFirstFineFormatVersion) return out;  // no fine data: empty
   const std::string fine_path = join(seg_dir, kFineBin);
   HWR_RETURN_IF_ERROR(check_file_size(fine_path, y->fine_bin_bytes));
   HWR_RETURN_IF_ERROR(store_detail::read_fine_file(

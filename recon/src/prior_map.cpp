@@ -171,7 +171,7 @@ void PriorMap::drop_unbudgeted(size_t index) {
 
 core::Status PriorMap::load_cloud(size_t index) {
   PriorSegment& s = segments_[index];
-  auto rec = store_.read_segment(s.segment_id);
+  auto rec = store_.read_cloud(s.segment_id);  // the points only: not keyframes.bin, not fine.bin
   if (!rec.ok()) return core::Status(rec.status().code(), "prior map: " + rec.status().message());
   std::vector<CloudPoint>& cloud = clouds_prior_[index];
   cloud = std::move(rec->points_segment);

@@ -850,6 +850,16 @@ TEST(MapStore, GivenASegmentWithThreeWeldRegionsAndAThousandFinePointsWhenReadBa
                                   fs::file_size(d + "/cloud.bin") + b.size());
   fs::remove(d + "/fine.bin");
   EXPECT_TRUE(store->read_keyframes(5).ok()) << "read_keyframes must not open fine.bin";
+
+  // The prior map's cloud read: cloud.bin alone, neither fine.bin nor keyframes.bin opened.
+  fs::remove(d + "/keyframes.bin");
+  auto cloud = store->read_cloud(5);
+  ASSERT_TRUE(cloud.ok()) << cloud.status().to_string();
+  EXPECT_EQ(cloud->points_segment.size(), seg.points_segment.size());
+  EXPECT_TRUE(cloud->keyframes.empty());
+  EXPECT_TRUE(cloud->fine_points_segment.empty());
+  EXPECT_TRUE(cloud->weld_regions.empty());
+  EXPECT_FALSE(store->read_segment(5).ok());  // the whole segment needs both
 }
 
 TEST(MapStore, GivenASegmentWithoutFineDataWhenReadBackThenTheFineVectorsAreEmpty) {

@@ -139,9 +139,16 @@ class MapStore {
   // (points_segment stays empty; cloud.bin is not opened): the prior map's index (issue #6,
   // prior_map.hpp) without the clouds in memory. Errors as read_segment's for those two files.
   core::Expected<SegmentRecord> read_keyframes(uint32_t segment_id) const;
+  // Reads and validates one segment's segment.yaml and cloud.bin only (keyframes and the fine cloud
+  // stay empty; keyframes.bin and fine.bin are not opened): what a prior map loads to search.
+  // Errors as read_segment's for those two files.
+  core::Expected<SegmentRecord> read_cloud(uint32_t segment_id) const;
 
  private:
-  core::Expected<SegmentRecord> read_segment_files(uint32_t segment_id, bool with_cloud) const;
+  struct Parts {
+    bool keyframes = true, cloud = true, fine = true;
+  };
+  core::Expected<SegmentRecord> read_segment_files(uint32_t segment_id, Parts parts) const;
   MapStore(std::string dir, StoreMetadata metadata) : dir_(std::move(dir)), metadata_(std::move(metadata)) {}
   std::string dir_;
   StoreMetadata metadata_;
