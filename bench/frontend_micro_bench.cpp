@@ -16,6 +16,7 @@
 #include "hwr/core/se3.hpp"
 #include "hwr/core/so3.hpp"
 #include "hwr/estimation/descriptor.hpp"
+#include "hwr/estimation/exact_matcher.hpp"
 #include "hwr/estimation/lsh_matcher.hpp"
 #include "hwr/estimation/motion_only_refiner.hpp"
 #include "hwr/estimation/orb_extractor.hpp"
@@ -204,6 +205,46 @@ void BM_FrontendLshBuildAndMatch(benchmark::State& state) {
   state.SetItemsProcessed(state.iterations());
 }
 BENCHMARK(BM_FrontendLshBuildAndMatch)->Unit(benchmark::kMillisecond);
+
+// The relocalizer's pattern: the current keyframe indexed once, then matched with many prior
+// keyframes (LSH: match only; exact: cv::batchDistance each time).
+void BM_FrontendLshMatchOnly(benchmark::State& state) {
+  const MatchSetup& s = match_setup();
+  if (!s.ok) {
+    state.SkipWithError("teddy dataset missing");
+    return;
+  }
+  LshMatcher lsh(1000, LshConfig{});
+  lsh.build(s.c);
+  std::vector<FeatureMatch> out(1000);
+  int m = 0;
+  for (auto _ : state) {
+    m = lsh.match(s.a, out.data(), 1000);
+    benchmark::DoNotOptimize(m);
+  }
+  state.counters["matches"] = m;
+  state.SetItemsProcessed(state.iterations());
+}
+BENCHMARK(BM_FrontendLshMatchOnly)->Unit(benchmark::kMillisecond);
+
+void BM_FrontendExactMatch(benchmark::State& state) {
+  const MatchSetup& s = match_setup();
+  if (!s.ok) {
+    state.SkipWithError("teddy dataset missing");
+    return;
+  }
+  ExactMatcher exact(1000, ExactMatchConfig{});
+  exact.build(s.c);
+  std::vector<FeatureMatch> out(1000);
+  int m = 0;
+  for (auto _ : state) {
+    m = exact.match(s.a, out.data(), 1000);
+    benchmark::DoNotOptimize(m);
+  }
+  state.counters["matches"] = m;
+  state.SetItemsProcessed(state.iterations());
+}
+BENCHMARK(BM_FrontendExactMatch)->Unit(benchmark::kMillisecond);
 
 Eigen::Isometry3d bench_pose() {
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();

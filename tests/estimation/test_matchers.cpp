@@ -1,4 +1,5 @@
-// ProjectionMatcher and LshMatcher (estimation/projection_matcher.hpp, lsh_matcher.hpp): synthetic
+// ProjectionMatcher, LshMatcher and ExactMatcher (estimation/projection_matcher.hpp, lsh_matcher.hpp,
+// exact_matcher.hpp): synthetic
 // cases with a known answer, and real TUM teddy frame pairs checked against the motion-capture
 // ground truth (a match is right when frame i's depth point, moved by the true relative pose,
 // lands within kRightPx of the matched feature of frame j). The ground truth itself is good to a
@@ -18,6 +19,7 @@
 #include "hwr/core/alloc_counter.hpp"
 #include "hwr/core/se3.hpp"
 #include "hwr/estimation/descriptor.hpp"
+#include "hwr/estimation/exact_matcher.hpp"
 #include "hwr/estimation/lsh_matcher.hpp"
 #include "hwr/estimation/orb_extractor.hpp"
 #include "hwr/estimation/projection_matcher.hpp"
@@ -84,6 +86,30 @@ void flip_bits(std::mt19937& rng, uint8_t* d, int bits) {
   for (int b = 0; b < bits; ++b) {
     const int k = static_cast<int>(rng() % kOrbDescriptorBits);
     d[k / 8] ^= static_cast<uint8_t>(1u << (k % 8));
+  }
+}
+
+// n random train descriptors; query k < copies is a copy of train (k * 7) % modulus with flips(k)
+// bits flipped, the rest of the n queries random.
+template <class Flips>
+void descriptor_pair(std::mt19937& rng, int n, int copies, int modulus, Flips flips, FrameFeatures* train,
+                     FrameFeatures* query) {
+  const Feature f;
+  for (int i = 0; i < n; ++i) {
+    uint8_t d[kOrbDescriptorBytes];
+    random_descriptor(rng, d);
+    ASSERT_EQ(train->push_back(f, d), i);
+  }
+  for (int k = 0; k < n; ++k) {
+    uint8_t d[kOrbDescriptorBytes];
+    if (k < copies) {
+      const int t = (k * 7) % modulus;
+      std::copy(train->descriptor(t), train->descriptor(t) + kOrbDescriptorBytes, d);
+      flip_bits(rng, d, flips(k));
+    } else {
+      random_descriptor(rng, d);
+    }
+    ASSERT_EQ(query->push_back(f, d), k);
   }
 }
 
@@ -206,23 +232,9 @@ TEST(LshMatcher, SyntheticDescriptorsMatchTheirCopies) {
   std::mt19937 rng(11);
   const int n = 600;
   FrameFeatures train(n, 640, 480), query(n, 640, 480);
-  Feature f;
-  for (int i = 0; i < n; ++i) {
-    uint8_t d[kOrbDescriptorBytes];
-    random_descriptor(rng, d);
-    ASSERT_EQ(train.push_back(f, d), i);
-  }
   // Query k is a noisy copy of train (k * 7) % n for the first half; random for the rest.
-  for (int k = 0; k < n; ++k) {
-    uint8_t d[kOrbDescriptorBytes];
-    if (k < n / 2) {
-      std::copy(train.descriptor((k * 7) % n), train.descriptor((k * 7) % n) + kOrbDescriptorBytes, d);
-      flip_bits(rng, d, 12);
-    } else {
-      random_descriptor(rng, d);
-    }
-    ASSERT_EQ(query.push_back(f, d), k);
-  }
+  descriptor_pair(
+      rng, n, n / 2, n, [](int) { return 12; }, &train, &query);
   LshMatcher lsh(n, LshConfig{});
   lsh.build(train);
   EXPECT_EQ(lsh.indexed(), n);
@@ -286,6 +298,66 @@ TEST(LshMatcher, TeddyFramesTenApart) {
   ASSERT_GT(checked, 100);
   EXPECT_GE(right, 0.85 * checked);
   EXPECT_GE(agree_brute, 0.9 * m);
+}
+
+// ExactMatcher against a brute-force oracle written out here: every match is the query's nearest
+// train descriptor, passes the ratio test against the true second nearest, and is the closest query
+// of its train feature; every query that the oracle accepts and that owns its train feature is found.
+TEST(ExactMatcher, GivenSyntheticDescriptorsThenTheMatchesAreTheOraclesExactly) {
+  std::mt19937 rng(5);
+  const int n = 500;
+  FrameFeatures train(n, 640, 480), query(n, 640, 480);
+  // Noisy copies of the first half (some two per train feature, so that ownership matters), then
+  // random ones.
+  descriptor_pair(
+      rng, n, 3 * n / 4, n / 2, [](int k) { return 4 + k % 20; }, &train, &query);
+  const ExactMatchConfig cfg;
+  // The oracle: per query its nearest and second nearest, the tests, then one owner per train.
+  std::vector<int> owner(n, -1), owner_d(n, 257);
+  for (int q = 0; q < n; ++q) {
+    int b1 = 257, b2 = 257, j1 = -1;
+    for (int t = 0; t < n; ++t) {
+      const int d = hamming_distance(query.descriptor(q), train.descriptor(t));
+      if (d < b1) {
+        b2 = b1;
+        b1 = d;
+        j1 = t;
+      } else if (d < b2) {
+        b2 = d;
+      }
+    }
+    if (b1 > cfg.max_distance || static_cast<float>(b1) >= cfg.ratio * static_cast<float>(b2)) continue;
+    if (b1 < owner_d[j1]) {
+      owner[j1] = q;
+      owner_d[j1] = b1;
+    }
+  }
+  int expected = 0;
+  for (int t = 0; t < n; ++t) expected += owner[t] >= 0 ? 1 : 0;
+
+  ExactMatcher exact(n, cfg);
+  std::vector<FeatureMatch> out(n);
+  EXPECT_EQ(exact.match(query, out.data(), n), 0) << "before build()";
+  exact.build(train);
+  EXPECT_EQ(exact.indexed(), n);
+  const int m = exact.match(query, out.data(), n);
+  ASSERT_EQ(m, expected);
+  ASSERT_GT(m, n / 3);
+  for (int k = 0; k < m; ++k) {
+    const FeatureMatch& fm = out[static_cast<size_t>(k)];
+    EXPECT_EQ(owner[fm.train], fm.query) << "train " << fm.train;
+    EXPECT_EQ(fm.distance, owner_d[fm.train]);
+    if (k > 0) {
+      EXPECT_LT(out[static_cast<size_t>(k - 1)].train, fm.train);
+    }
+  }
+  // max_out caps the output; a single train descriptor has no second neighbour (no ratio test).
+  EXPECT_EQ(exact.match(query, out.data(), 10), 10);
+  FrameFeatures one(1, 640, 480);
+  ASSERT_EQ(one.push_back(Feature{}, train.descriptor(0)), 0);
+  exact.build(one);
+  ASSERT_GE(exact.match(query, out.data(), n), 1);
+  EXPECT_EQ(out[0].train, 0);
 }
 
 }  // namespace
