@@ -6,7 +6,7 @@
 //    found next to this program or given with --robot), cached under --prior-cache and reused while
 //    they open cleanly. The prior frame is that run's estimated world (with its drift).
 //  - Starts: --starts random frames (seeded) of the revisit run (lab-revisit, outdoor-revisit: another
-//    day, a plate moved, a box removed) with at least --max-motion-m of walk after them; the same
+//    day, a plate moved, a box removed) with at least --start-walk-m of walk after them; the same
 //    starts for every sensor set. A start is a robot switched on there (reloc_bench_run.hpp); its
 //    relative poses over these few metres come from the simulator, not from the tracker.
 //  - "Keep trying while the robot moves": the first attempt once it moved --first-motion-m, then one
@@ -22,9 +22,10 @@
 //    caps; any pose returned counts.
 //
 //   hwr-bench reloc [--scenes lab,outdoor] [--starts 50] [--quick] [--seed 1] [--prior-cache DIR]
-//                   [--robot PATH] [--false-starts 20] [--max-attempts 8] [--first-motion-m 1]
-//                   [--attempt-step-m 1] [--max-motion-m 8] [--keyframe-step 12] [--verbose]
+//                   [--robot PATH] [--false-starts 20] [--max-attempts 30] [--first-motion-m 1]
+//                   [--attempt-step-m 1] [--max-motion-m 30] [--keyframe-step 12] [--verbose]
 //                   [--sets neither,imu,gnss,both] [--orb-refine all|weak|off] [--start-frames F,F,...]
+//                   [--min-attempt-structure N] [--start-walk-m 8.5] [--matching exact|lsh]
 //  --start-frames: these revisit frames instead of --starts random ones, in every scene of --scenes
 //    (to rerun the starts a verbose log names: --scenes outdoor --start-frames f4678); frames past a
 //    scene's last usable start are refused before its prior is opened. The false check (outdoor
@@ -73,14 +74,22 @@ struct Options {
   uint64_t seed = 1;
   std::string prior_cache = "/tmp/hwr-bench-reloc-priors";
   std::string robot;
-  int max_attempts = 8;
-  double first_motion_m = 1.0, attempt_step_m = 1.0, max_motion_m = 8.0;
+  // 30 m: outdoors the walk crosses 15-30 m of open yard between structures, where no attempt can
+  // succeed (RelocalizerConfig::min_attempt_structure_points); the paper's 12.6-16.2 s outdoors are
+  // ~11-15 m at the simulator's 0.9 m/s. Until 2026-12-02: 8 attempts / 8 m.
+  int max_attempts = 30;
+  double first_motion_m = 1.0, attempt_step_m = 1.0, max_motion_m = 30.0;
+  // A start has at least this much walk after it (the same starts as with the 8 m cap before; a
+  // start nearer the end has fewer attempts, as a robot whose run ends).
+  double start_walk_m = 8.5;
   size_t keyframe_step = 12;
   bool verbose = false;
   std::vector<std::string> sets = {"neither", "imu", "gnss", "both"};  // rows to run (set_key)
   // Step d' (relocalizer.hpp): all (the default: degenerate and converged fine fits), weak (degenerate
   // only), off.
   std::string orb_refine = "all";
+  int min_attempt_structure = -1;  // --min-attempt-structure: RelocalizerConfig's (-1: its default)
+  std::string matching = "exact";  // --matching exact|lsh (RelocalizerConfig::exact_matching)
 };
 
 // ---- sensor sets (paper Table IV columns) ----
@@ -393,10 +402,10 @@ core::Status run_start(const Options& o, Prior* prior, recon::Relocalizer* reloc
         std::printf(
             "      stages: appearance %.3f s (index %.3f), geometry %.3f s, NDT %.3f s; %d candidates, "
             "%d ranked, %d RANSAC hypotheses, %d seeds, %d NDT runs (%d from rival seeds), "
-            "%d ORB rival keyframes (%d rivals), target <= %lld points\n",
+            "%d ORB rival keyframes (%d rivals), target <= %lld points, %d structure points\n",
             r.appearance_s, r.index_s, r.geometry_s, r.ndt_s, n.candidates, n.appearance_ranked,
             n.ransac_hypotheses, n.fallback_seeds, n.ndt_runs, n.rival_seeds, n.orb_rival_tests, n.orb_rivals,
-            static_cast<long long>(n.target_points));
+            static_cast<long long>(n.target_points), r.structure_points);
       }
       if (o.verbose && !r.localized && r.best_fit_valid) {
         // The rejected best fit: was the rejection right?
@@ -515,12 +524,22 @@ int run_reloc(int argc, char** argv) {
       o.first_motion_m = std::atof(value("--first-motion-m").c_str());
     } else if (a == "--attempt-step-m") {
       o.attempt_step_m = std::atof(value("--attempt-step-m").c_str());
+    } else if (a == "--start-walk-m") {
+      o.start_walk_m = std::atof(value("--start-walk-m").c_str());
     } else if (a == "--max-motion-m") {
       o.max_motion_m = std::atof(value("--max-motion-m").c_str());
     } else if (a == "--keyframe-step") {
       o.keyframe_step = static_cast<size_t>(std::max(1, std::atoi(value("--keyframe-step").c_str())));
     } else if (a == "--verbose") {
       o.verbose = true;
+    } else if (a == "--matching") {
+      o.matching = value("--matching");
+      if (o.matching != "exact" && o.matching != "lsh") {
+        std::fprintf(stderr, "reloc: --matching takes exact or lsh\n");
+        return 2;
+      }
+    } else if (a == "--min-attempt-structure") {
+      o.min_attempt_structure = std::atoi(value("--min-attempt-structure").c_str());
     } else if (a == "--orb-refine") {
       o.orb_refine = value("--orb-refine");
       if (o.orb_refine != "off" && o.orb_refine != "weak" && o.orb_refine != "all") {
@@ -555,7 +574,8 @@ int run_reloc(int argc, char** argv) {
                    "       [--prior-cache DIR] [--robot PATH] [--false-starts N] [--max-attempts N]\n"
                    "       [--first-motion-m M] [--attempt-step-m M] [--max-motion-m M] [--keyframe-step N] "
                    "[--verbose]\n       [--sets neither,imu,gnss,both] [--orb-refine all|weak|off] "
-                   "[--start-frames F,F,...]\n");
+                   "[--start-frames F,F,...]\n       [--min-attempt-structure N] [--start-walk-m M] "
+                   "[--matching exact|lsh]\n");
       return a == "--help" || a == "-h" ? 0 : 2;
     }
   }
@@ -564,7 +584,7 @@ int run_reloc(int argc, char** argv) {
     if (!false_given) o.false_starts = 5;
   }
   if (o.starts < 1 || o.false_starts < 0 || o.max_attempts < 1 || !(o.first_motion_m > 0) ||
-      !(o.attempt_step_m > 0) || !(o.max_motion_m >= o.first_motion_m)) {
+      !(o.attempt_step_m > 0) || !(o.max_motion_m >= o.first_motion_m) || !(o.start_walk_m >= 0)) {
     std::fprintf(stderr,
                  "reloc: need --starts >= 1, --false-starts >= 0, --max-attempts >= 1, motions > 0\n");
     return 2;
@@ -573,6 +593,8 @@ int run_reloc(int argc, char** argv) {
   recon::RelocalizerConfig rcfg;  // the defaults, but for --orb-refine
   rcfg.orb_refine = o.orb_refine != "off";
   rcfg.orb_refine_converged = o.orb_refine == "all";
+  if (o.min_attempt_structure >= 0) rcfg.min_attempt_structure_points = o.min_attempt_structure;
+  rcfg.exact_matching = o.matching == "exact";
   std::printf(
       "hwr-bench reloc: %d starts per scene (seed %llu), %d false starts (outdoor vs lab prior); attempts "
       "from %.1f m "
@@ -582,10 +604,12 @@ int run_reloc(int argc, char** argv) {
       o.max_attempts, o.max_motion_m, o.keyframe_step);
   std::printf(
       "relocalizer: RelocalizerConfig defaults (top_k %d, min_votes %d, keep_best %d, min_inlier_ratio "
-      "%.2f, min_score_margin %.2f, candidate_sigma_factor %.1f, ndt_fine down to %.2f m), ORB refinement "
-      "%s\n",
+      "%.2f, min_score_margin %.2f, candidate_sigma_factor %.1f, ndt_fine down to %.2f m, attempts need %d "
+      "structure points, %s "
+      "keyframe matching), ORB refinement %s\n",
       rcfg.top_k, rcfg.min_votes, rcfg.keep_best, rcfg.min_inlier_ratio, rcfg.min_score_margin,
-      rcfg.candidate_sigma_factor, rcfg.ndt_fine.resolutions_m[1], o.orb_refine.c_str());
+      rcfg.candidate_sigma_factor, rcfg.ndt_fine.resolutions_m[1], rcfg.min_attempt_structure_points,
+      o.matching.c_str(), o.orb_refine.c_str());
 
   struct Scene {
     std::string name;
@@ -612,7 +636,7 @@ int run_reloc(int argc, char** argv) {
     }
     sc.revisit = std::move(revisit).value();
     // Chosen starts are checked before the prior map is opened (or built: minutes).
-    const size_t last = last_start(*sc.revisit, o.max_motion_m + 0.5);
+    const size_t last = last_start(*sc.revisit, o.start_walk_m);
     for (size_t f : o.start_frames) {
       if (f > last) {
         std::fprintf(stderr, "reloc: %s: start frame %zu is past the last usable start (f%zu)\n",
@@ -657,8 +681,8 @@ int run_reloc(int argc, char** argv) {
         sc.prior->T_imu_cam_from_sim
             ? "; its store has no T_imu_cam or another than the simulator's: the simulator's mount is used"
             : "");
-    for (size_t f : o.start_frames.empty() ? draw_starts(*sc.revisit, o.starts, o.max_motion_m + 0.5, &rng)
-                                           : o.start_frames) {
+    for (size_t f :
+         o.start_frames.empty() ? draw_starts(*sc.revisit, o.starts, o.start_walk_m, &rng) : o.start_frames) {
       sc.starts.push_back(std::make_unique<RelocStart>(sc.revisit.get(), f, o.keyframe_step, kMaxFeatures));
     }
     scenes.push_back(std::move(sc));

@@ -13,6 +13,7 @@
 
 #include "hwr/core/so3.hpp"
 #include "hwr/estimation/descriptor.hpp"
+#include "hwr/estimation/exact_matcher.hpp"
 #include "hwr/estimation/motion_only_refiner.hpp"
 
 #include "hwr/recon/structure_points.hpp"
@@ -279,6 +280,8 @@ const char* relocalization_reason_name(RelocalizationReason r) {
       return "invalid query";
     case RelocalizationReason::kTooFewLocalPoints:
       return "too few local map points";
+    case RelocalizationReason::kTooLittleStructure:
+      return "too little structure";
     case RelocalizationReason::kNoCandidates:
       return "no candidate keyframes";
     case RelocalizationReason::kNdtFailed:
@@ -303,7 +306,7 @@ struct Relocalizer::Impl {
       : config(c),
         K(k),
         max_features(max_feat),
-        current_index(max_feat, c.lsh),
+        current_index(max_feat, c),
         ransac(max_feat),
         refiner(max_feat),
         ndt_coarse(std::move(coarse)),
@@ -399,7 +402,27 @@ struct Relocalizer::Impl {
   RelocalizerConfig config;
   hal::PinholeIntrinsics K;
   int max_features;
-  estimation::LshMatcher current_index;  // the query keyframe's descriptors, per call
+  // The query keyframe's descriptors, per call: exact or LSH (RelocalizerConfig::exact_matching).
+  struct KeyframeMatcher {
+    KeyframeMatcher(int max_features, const RelocalizerConfig& c)
+        : exact_matching(c.exact_matching),
+          exact(max_features, {c.lsh.max_distance, c.lsh.ratio}),
+          lsh(c.exact_matching ? 1 : max_features, c.lsh) {}
+    void build(const estimation::FrameFeatures& current) {
+      if (exact_matching) {
+        exact.build(current);
+      } else {
+        lsh.build(current);
+      }
+    }
+    int match(const estimation::FrameFeatures& prior_kf, estimation::FeatureMatch* out, int max_out) {
+      return exact_matching ? exact.match(prior_kf, out, max_out) : lsh.match(prior_kf, out, max_out);
+    }
+    bool exact_matching;
+    estimation::ExactMatcher exact;
+    estimation::LshMatcher lsh;
+  };
+  KeyframeMatcher current_index;
   // Every prior keyframe's descriptors in one LSH index (prepare()).
   VoteIndex prior_index;
   uint64_t indexed_prior = 0;  // PriorMap::instance_id() of the indexed map (0: none)
@@ -752,10 +775,12 @@ core::Expected<Relocalizer> Relocalizer::create(const RelocalizerConfig& c, cons
     return core::InvalidArgument(
         "relocalizer: orb_rival_keyframes must be >= 0, orb_rival_min_inlier_fraction in [0, 1]");
   }
-  if (c.min_structure_points < 1 || !(c.structure_voxel_m > 0) || !std::isfinite(c.structure_voxel_m) ||
+  if (c.min_structure_points < 1 || c.min_attempt_structure_points < 0 || !(c.structure_voxel_m > 0) ||
+      !std::isfinite(c.structure_voxel_m) ||
       !(c.structure_min_normal_z >= 0 && c.structure_min_normal_z <= 1)) {
     return core::InvalidArgument(
-        "relocalizer: min_structure_points must be >= 1, structure_voxel_m > 0 and structure_min_normal_z "
+        "relocalizer: min_structure_points must be >= 1, min_attempt_structure_points >= 0, "
+        "structure_voxel_m > 0 and structure_min_normal_z "
         "in [0, 1]");
   }
   // The structure scores' target: a ball of the local map's extent + target_margin_m at 0.25-1 m
@@ -825,6 +850,13 @@ RelocalizationResult Relocalizer::relocalize(const RelocalizationQuery& q, Prior
   structure_config.min_normal_z = cfg.structure_min_normal_z;
   m.n_structure =
       split_structure_points(m.source.data(), m.n_source, structure_config, &m.structure, &m.fine_source);
+  res.structure_points = m.n_structure;
+  if (m.n_structure < cfg.min_attempt_structure_points) {
+    return done(RelocalizationReason::kTooLittleStructure,
+                format("relocalizer: the local map has %.0f structure points (< %.0f): the ground alone "
+                       "leaves x, y and yaw free; keep moving",
+                       m.n_structure, cfg.min_attempt_structure_points));
+  }
   // The fine stage's source: with enough structure, all of it and at most fine_ground_share of its
   // count from the rest (every k-th), so that the ground's in-plane pull on its voxel means does not
   // outweigh the structure along x, y and yaw; else the whole subsampled local map.
@@ -993,6 +1025,8 @@ RelocalizationResult Relocalizer::relocalize(const RelocalizationQuery& q, Prior
     Eigen::Isometry3d T_prior_world = Eigen::Isometry3d::Identity();
     int inliers = 0;
     double sigma_m = 0, sigma_rad = 0, fine_source_score = 0;
+    // The ORB fit passed its own gates (inliers, sigma) but lies beyond the move limit of the fit.
+    bool beyond_move = false;
     std::string why;
     core::Status status;
   };
@@ -1030,6 +1064,7 @@ RelocalizationResult Relocalizer::relocalize(const RelocalizationQuery& q, Prior
     const double max_move_m = weak ? cfg.orb_refine_max_move_m : cfg.orb_refine_converged_max_move_m;
     const double max_move_rad = weak ? cfg.orb_refine_max_move_rad : cfg.orb_refine_converged_max_move_rad;
     if (d.m > max_move_m || d.rad > max_move_rad) {
+      out.beyond_move = true;
       out.why = format("the ORB fit is %.2f m / %.1f deg from the NDT fit", d.m, d.rad * kRadToDeg);
     } else if (!agrees(scores[0]) || !agrees(scores[1])) {
       out.why = format(
@@ -1576,6 +1611,17 @@ RelocalizationResult Relocalizer::relocalize(const RelocalizationQuery& q, Prior
     }
     if (!why.empty() && res.orb_refine_failure.empty()) res.orb_refine_failure = "polish: " + why;
     not_polished = why;
+    if (o.status.ok() && o.beyond_move && cfg.orb_polish_rejects_beyond_move) {
+      // The keypoints near the camera put it further from the NDT fit than a polish may move it: the
+      // fit is off (hwr-bench reloc, 50 starts: all 12 accepted fits whose polish was refused so were
+      // 10-21 cm / 0.1-1.5 deg off, outdoors where the local map held a removed crate and a moved
+      // plate, accepted with a GNSS prior; none of the 258 accurate ones was).
+      return done(
+          RelocalizationReason::kNotVerified,
+          "relocalizer: the ORB fit over the nearby prior keyframes disagrees with the NDT fit (" + why +
+              format("; a polish moves at most %.2f m / %.1f deg): not accurate enough",
+                     cfg.orb_refine_converged_max_move_m, cfg.orb_refine_converged_max_move_rad * kRadToDeg));
+    }
   }
   return done(
       RelocalizationReason::kLocalized,

@@ -555,16 +555,20 @@ TEST(Relocalizer, GivenAFineFitNdtCallsDegenerateThenTheOrbRefinementPinsItAndFa
   EXPECT_NE(r3.message.find("ORB refinement: not tried"), std::string::npos) << r3.message;
 }
 
-TEST(Relocalizer, GivenAConvergedFitThenTheOrbPolishMovesThePoseButNeverTheVerdict) {
+// The polish moves an accepted fit by at most orb_refine_converged_max_move; an ORB fit beyond that
+// rejects the fit (orb_polish_rejects_beyond_move), else it never changes the verdict.
+TEST(Relocalizer, GivenAConvergedFitThenTheOrbPolishMovesThePoseOrRejectsAFitItContradicts) {
   auto prior = PriorMap::open(stores().full);
   ASSERT_TRUE(prior.ok()) << prior.status().message();
   const Eigen::Isometry3d T_true = known_T_prior_world();
   const CurrentRun run = make_current(walk().query_lab, T_true);
   auto make = [&](bool polish, double max_move_m,
                   int weak_min_inliers = RelocalizerConfig{}.orb_refine_min_inliers,
-                  int polish_min_inliers = RelocalizerConfig{}.orb_refine_converged_min_inliers) {
+                  int polish_min_inliers = RelocalizerConfig{}.orb_refine_converged_min_inliers,
+                  bool rejects_beyond_move = true) {
     RelocalizerConfig c;
     c.orb_refine_converged = polish;
+    c.orb_polish_rejects_beyond_move = rejects_beyond_move;
     c.orb_refine_converged_max_move_m = max_move_m;
     c.orb_refine_min_inliers = weak_min_inliers;
     c.orb_refine_converged_min_inliers = polish_min_inliers;
@@ -587,8 +591,8 @@ TEST(Relocalizer, GivenAConvergedFitThenTheOrbPolishMovesThePoseButNeverTheVerdi
   ASSERT_TRUE(r1.orb_refined);
   EXPECT_FALSE(r1.orb_refined_weak);
   EXPECT_NE(r1.message.find("polished by"), std::string::npos) << r1.message;
-  // The same NDT fit underneath, judged the same. Two relocalizers differ below a millimetre (FLANN
-  // draws its LSH tables at random), so "the same" is within 2 mm and 0.01 of margin.
+  // The same NDT fit underneath, judged the same, within 2 mm and 0.01 of margin (with LSH keyframe
+  // matching two relocalizers differed below a millimetre: FLANN draws its tables at random).
   EXPECT_LT(pose_errors(r1.T_prior_world_ndt, r0.T_prior_world).m, 0.002);
   EXPECT_NEAR(r1.score_margin, r0.score_margin, 0.01);
   EXPECT_EQ(r1.T_prior_world_best_fit.matrix(), r1.T_prior_world_ndt.matrix());  // the pose judged
@@ -600,9 +604,18 @@ TEST(Relocalizer, GivenAConvergedFitThenTheOrbPolishMovesThePoseButNeverTheVerdi
   EXPECT_LT(e.deg, 0.3);
   EXPECT_LE(pose_errors(r1.T_prior_world, r1.T_prior_world_ndt).m, 0.1);  // orb_refine_converged_max_move_m
 
-  // A polish that would move the fit further than allowed (here 1 um) is not taken: NDT's pose stays.
+  // An ORB fit further from the fit than a polish may move it (here 1 um) contradicts it: rejected.
   Relocalizer tight = make(true, 1e-6);
-  const RelocalizationResult r2 = tight.relocalize(q, &prior.value());
+  const RelocalizationResult rr = tight.relocalize(q, &prior.value());
+  print_result("converged, ORB fit beyond 1 um", rr);
+  EXPECT_FALSE(rr.localized);
+  EXPECT_EQ(rr.reason, RelocalizationReason::kNotVerified);
+  EXPECT_NE(rr.message.find("disagrees with the NDT fit (the ORB fit is"), std::string::npos) << rr.message;
+  EXPECT_TRUE(rr.best_fit_valid);
+  // Without that rule the polish is only not taken: NDT's pose stays.
+  Relocalizer tight_keep = make(true, 1e-6, RelocalizerConfig{}.orb_refine_min_inliers,
+                                RelocalizerConfig{}.orb_refine_converged_min_inliers, false);
+  const RelocalizationResult r2 = tight_keep.relocalize(q, &prior.value());
   ASSERT_TRUE(r2.localized) << r2.message;
   EXPECT_FALSE(r2.orb_refined);
   EXPECT_GT(r2.orb_refine_attempts, 0);
@@ -848,6 +861,53 @@ TEST(Relocalizer, GivenContradictingPriorsThenNotLocalized) {
   const RelocalizationResult p = reloc.relocalize(q, &prior.value());
   print_result("position prior off by 6 m", p);
   EXPECT_FALSE(p.localized) << p.message;
+}
+
+// A local map of the floor alone (the lab query's points within 5 cm of the lowest, heights taken in
+// the gravity-aligned prior frame: the current world is tilted 2 deg against it): NDT cannot fix x, y
+// or yaw on it, so the attempt ends at once with kTooLittleStructure; with the gate off it goes on to
+// the candidates and NDT (and is not accepted either).
+TEST(Relocalizer, GivenAGroundOnlyLocalMapThenTheAttemptEndsAtOnceForTooLittleStructure) {
+  auto prior = PriorMap::open(stores().full);
+  ASSERT_TRUE(prior.ok());
+  const Eigen::Isometry3d T_prior_world = known_T_prior_world();
+  const CurrentRun run = make_current(walk().query_lab, T_prior_world);
+  auto height = [&](const CloudPoint& p) {
+    return (T_prior_world * Eigen::Vector3d(p.x_m, p.y_m, p.z_m)).z();
+  };
+  double z_floor = std::numeric_limits<double>::max();
+  for (const CloudPoint& p : run.local_map_world) z_floor = std::min(z_floor, height(p));
+  CurrentRun ground = run;
+  ground.local_map_world.clear();
+  for (const CloudPoint& p : run.local_map_world) {
+    if (height(p) < z_floor + 0.05) ground.local_map_world.push_back(p);
+  }
+  ASSERT_GT(ground.local_map_world.size(), 2000u);
+
+  Relocalizer reloc = make_relocalizer();
+  const RelocalizationResult r = reloc.relocalize(make_query(ground), &prior.value());
+  print_result("floor only", r);
+  EXPECT_EQ(r.reason, RelocalizationReason::kTooLittleStructure) << r.message;
+  EXPECT_FALSE(r.localized);
+  EXPECT_LT(r.structure_points, reloc.config().min_attempt_structure_points);
+  EXPECT_EQ(r.counters.candidates, 0);
+  EXPECT_EQ(r.counters.ndt_runs, 0);
+  // The whole local map has the structure (its own tests localize it).
+  const RelocalizationResult full = reloc.relocalize(make_query(run), &prior.value());
+  EXPECT_GE(full.structure_points, reloc.config().min_attempt_structure_points);
+  EXPECT_NE(full.reason, RelocalizationReason::kTooLittleStructure);
+
+  RelocalizerConfig c;
+  c.min_attempt_structure_points = 0;
+  auto ungated = Relocalizer::create(c, walk().K, kMaxFeatures);
+  ASSERT_TRUE(ungated.ok());
+  const RelocalizationResult u = ungated->relocalize(make_query(ground), &prior.value());
+  print_result("floor only, gate off", u);
+  EXPECT_NE(u.reason, RelocalizationReason::kTooLittleStructure);
+  EXPECT_GT(u.counters.candidates, 0);
+  EXPECT_FALSE(u.localized) << u.message;
+  c.min_attempt_structure_points = -1;
+  EXPECT_FALSE(Relocalizer::create(c, walk().K, kMaxFeatures).ok());
 }
 
 TEST(Relocalizer, GivenAnInvalidQueryThenAnErrorReasonAndNoPose) {

@@ -8,6 +8,8 @@
 // and NDT matching are performed between the current point cloud and the prior map with the key
 // frames. Key frames are typically sampled within twice the moving distance ... Three high-resolution
 // poses are selected for precise matching"):
+//  0. Structure (min_attempt_structure_points): a local map of ground alone ends the attempt at once
+//     (kTooLittleStructure); the caller tries again after more motion.
 //  a. Candidates (sample_candidates): with a position prior (a GNSS fix moved into the prior frame),
 //     the prior keyframes within 2 d + k sigma of it horizontally, d the distance moved so far;
 //     without one, every prior keyframe.
@@ -17,7 +19,7 @@
 //     descriptor within vote_tie_bits of the nearest one found (near-ties: the copies of a repeated
 //     place all get the vote; nearest-only votes gave the sim's copy, 3 bits further, 4 of the
 //     original's 57). Candidates are ranked by votes and the top_k (no two neighbouring keyframes)
-//     go on, each matched with the current keyframe (estimation::LshMatcher, ratio test).
+//     go on, each matched with the current keyframe (estimation::ExactMatcher, ratio test).
 //  c. Geometry: per candidate, RANSAC (estimation::PoseRansac) over the candidate's keypoints with
 //     depth (moved to the prior frame) and the current keypoints gives T_prior_cam, hence
 //     T_prior_world = T_prior_cam * T_world_cam^-1. With a yaw prior, hypotheses whose relative yaw
@@ -46,7 +48,8 @@
 //     it replaces the NDT pose only when that fit pins every direction and NDT scores it about as
 //     well (the geometry agrees), else the fit stays rejected as degenerate. A converged fit that
 //     step e accepts is then polished the same way (orb_refine_converged; a move of at most
-//     10 cm / 1 deg, within the priors' gates): the ORB fit over the nearby keyframes measures the
+//     10 cm / 1 deg, within the priors' gates; an ORB fit beyond that move rejects the fit,
+//     orb_polish_rejects_beyond_move): the ORB fit over the nearby keyframes measures the
 //     pose against the map where the camera is, which the NDT fit over the whole local map can miss
 //     by a few tenths of a degree (sim lab: 3-4.5 cm at the camera). The verdict is NDT's; the
 //     polished pose is returned only when it passes step e's pose-dependent tests too.
@@ -151,6 +154,10 @@ struct RelocalizerConfig {
     c.multi_probe = 0;
     return c;
   }();
+  // The current keyframe matched with one prior keyframe at a time (steps c, d', e): exact 2-NN
+  // (estimation::ExactMatcher, exact_matcher.hpp) or, when false, FLANN's LSH with `lsh` (the
+  // relocalizer's matcher until 2026-12-02). Either way the ratio test and max distance are lsh's.
+  bool exact_matching = true;
   estimation::LshConfig lsh;
   int vote_max_distance = 50;  // Hamming distance of a vote (nearest prior descriptor)
   // A current descriptor votes for every prior keyframe holding a descriptor within this many bits
@@ -260,6 +267,10 @@ struct RelocalizerConfig {
   // ratio 0.0134, just over the degeneracy test's 0.0125) was 3.45 cm off had 162-166
   // correspondences with the 5 nearest prior keyframes, so 200 refused its polish.
   int orb_refine_converged_min_inliers = 100;
+  // A polish refused because the ORB fit (its own gates passed) lies beyond the move limit means the
+  // keypoints near the camera contradict the NDT fit: the attempt is rejected (kNotVerified) instead
+  // of returning NDT's pose.
+  bool orb_polish_rejects_beyond_move = true;
   int max_source_points = 8'000;    // the local cloud is subsampled (stride) to at most this
   int max_target_points = 150'000;  // the prior target is subsampled (stride) to at most this
   // The coarse stage (1-2 m voxels, seeds only) takes every k-th source point, at most
@@ -278,6 +289,12 @@ struct RelocalizerConfig {
   // points: outdoors the ground is most of the map and fits a wrong pose as well as the right one
   // (sim outdoor: margins over all points 0.01-0.23 for correct fits).
   int min_structure_points = 300;
+  // An attempt whose local map has fewer structure points than this ends at once
+  // (kTooLittleStructure), before any matching or NDT: the ground alone leaves x, y and yaw free, so
+  // NDT calls every fit degenerate, the ORB refinement needs min_structure_points, and the ground's
+  // texture can repeat (hwr-bench reloc --verbose: such attempts outdoors took 0.1-0.4 s each and
+  // none was accepted). 0: off.
+  int min_attempt_structure_points = 300;
   double structure_voxel_m = 0.5;
   double structure_min_normal_z = 0.8;
   // With that much structure the fine NDT (step d) aligns the structure points and at most this
@@ -323,15 +340,16 @@ struct RelocalizationQuery {
 
 enum class RelocalizationReason : uint8_t {
   kLocalized,
-  kInvalidQuery,       // see the message
-  kTooFewLocalPoints,  // the local map is too small for NDT
-  kNoCandidates,       // no prior keyframe near the position prior
-  kNdtFailed,          // no hypothesis converged
-  kLowInlierRatio,     // the best fit leaves too much of the local map unexplained
-  kPriorDisagreement,  // the best fit contradicts the yaw / position prior or its ORB seed
-  kAmbiguous,          // another, distinct pose fits almost as well
-  kNotVerified,        // the current keyframe's ORB features disagree with the best fit
-  kPriorMapError,      // a prior cloud could not be read (see the message)
+  kInvalidQuery,        // see the message
+  kTooFewLocalPoints,   // the local map is too small for NDT
+  kTooLittleStructure,  // the local map is ground only (min_attempt_structure_points)
+  kNoCandidates,        // no prior keyframe near the position prior
+  kNdtFailed,           // no hypothesis converged
+  kLowInlierRatio,      // the best fit leaves too much of the local map unexplained
+  kPriorDisagreement,   // the best fit contradicts the yaw / position prior or its ORB seed
+  kAmbiguous,           // another, distinct pose fits almost as well
+  kNotVerified,         // the current keyframe's ORB features disagree with the best fit
+  kPriorMapError,       // a prior cloud could not be read (see the message)
 };
 const char* relocalization_reason_name(RelocalizationReason r);
 
@@ -364,6 +382,7 @@ struct RelocalizationResult {
   // The fine scores (per source point) of the keep_best hypotheses, best first; unused are 0.
   std::array<double, 3> best_scores{0, 0, 0};
   double best_inlier_ratio = 0;
+  int structure_points = 0;  // the local map's structure points (off horizontal planes, step e)
   // Relative margin of the best fine score over the best distinct rival's the priors allow (fine and
   // coarse, the smaller). 1 when rivals were evaluated and none ended distinct from the best.
   double score_margin = 0;
