@@ -125,7 +125,12 @@ int run_map_update(int argc, char** argv) {
     int64_t o = 0, e = 0;
     count(a.value(), &o, &e);
     old_all += o;
-    if (!has_update) continue;
+    if (!has_update) {
+      if (o > 0)
+        std::printf("  segment %u: %lld old-place points, not updated\n", ps.segment_id,
+                    static_cast<long long>(o));
+      continue;
+    }
     auto b = updated->read_segment(ps.segment_id);
     if (!b.ok()) {
       std::fprintf(stderr, "hwr-eval: %s\n", b.status().message().c_str());
@@ -133,7 +138,13 @@ int run_map_update(int argc, char** argv) {
     }
     old_before += o;
     else_before += e;
-    count(b.value(), &old_after, &else_after);
+    int64_t o_after = 0, e_after = 0;
+    count(b.value(), &o_after, &e_after);
+    old_after += o_after;
+    else_after += e_after;
+    std::printf("  segment %u: %lld old-place points, %lld deleted; elsewhere %lld of %lld deleted\n",
+                ps.segment_id, static_cast<long long>(o), static_cast<long long>(o - o_after),
+                static_cast<long long>(e - e_after), static_cast<long long>(e));
     ++segments_compared;
   }
   const double old_deleted_pct =

@@ -16,8 +16,10 @@ struct PriorMapUpdater::Impl {
     uint32_t segment_id = 0;
     Eigen::Isometry3d T_prior_segment = Eigen::Isometry3d::Identity();
     Eigen::AlignedBox3d box_prior;  // its keyframes grown by reach_m, then its cloud once read
-    bool skip = false;              // unreadable or too big
-    int version = 0;                // 0: as in the prior store; else the latest version is in `updated`
+    // Where its keyframes looked: camera centre + look_ahead_m along the optical axis (prior frame).
+    std::vector<Eigen::Vector3d> look_prior;
+    bool skip = false;  // unreadable or too big
+    int version = 0;    // 0: as in the prior store; else the latest version is in `updated`
     int deleted_total = 0;
     std::unique_ptr<SegmentRecord> updated;
   };
@@ -133,8 +135,8 @@ core::Expected<PriorMapUpdater> PriorMapUpdater::create(const std::string& prior
     return core::InvalidArgument(
         "map update: max_open_segments, max_segment_points and carve_stride_px must be >= 1");
   }
-  if (!(config.reach_m > 0)) {
-    return core::InvalidArgument("map update: reach_m must be positive");
+  if (!(config.reach_m > 0) || !(config.look_ahead_m >= 0) || !std::isfinite(config.look_ahead_m)) {
+    return core::InvalidArgument("map update: reach_m must be positive and look_ahead_m finite and >= 0");
   }
   if (!(config.carried_information >= 0.0 && config.carried_information <= 1.0)) {
     return core::InvalidArgument("map update: carried_information must be in [0, 1] (got " +
@@ -165,7 +167,10 @@ core::Expected<PriorMapUpdater> PriorMapUpdater::create(const std::string& prior
     Impl::Entry e;
     e.segment_id = s.segment_id;
     e.T_prior_segment = seg->T_world_segment;
-    for (const StoredKeyframe& kf : seg->keyframes) e.box_prior.extend(kf.T_world_cam.translation());
+    for (const StoredKeyframe& kf : seg->keyframes) {
+      e.box_prior.extend(kf.T_world_cam.translation());
+      e.look_prior.push_back(kf.T_world_cam * Eigen::Vector3d(0, 0, config.look_ahead_m));
+    }
     if (e.box_prior.isEmpty()) e.box_prior.extend(seg->T_world_segment.translation());
     const Eigen::Vector3d reach = Eigen::Vector3d::Constant(config.reach_m);
     e.box_prior = Eigen::AlignedBox3d(e.box_prior.min() - reach, e.box_prior.max() + reach);
@@ -190,14 +195,21 @@ core::Status PriorMapUpdater::observe(const cv::Mat& depth_m, const Eigen::Isome
   }
   ++m.tick;
   ++m.counters.keyframes;
-  // 1. Prior segments in view, nearest first, at most one per slot.
+  // 1. Prior segments in view (box within the carving range), those whose keyframes looked at the
+  // place this camera looks at first, at most one per slot. By box distance alone every segment
+  // whose box holds the camera tied at 0 and the lowest ids won: in the lab revisit the two later
+  // passes by the moved plate were never opened.
   const Eigen::Vector3d c = T_prior_cam.translation();
+  const Eigen::Vector3d look = T_prior_cam * Eigen::Vector3d(0, 0, m.config.look_ahead_m);
   const double view_m = m.config.carver.max_depth_m;
   m.seen.clear();
   for (size_t e = 0; e < m.entries.size(); ++e) {
     if (m.entries[e].skip) continue;
-    const double d = m.entries[e].box_prior.exteriorDistance(c);
-    if (d <= view_m) m.seen.emplace_back(d, e);
+    if (m.entries[e].box_prior.exteriorDistance(c) > view_m) continue;
+    double nearest = std::numeric_limits<double>::infinity();
+    for (const Eigen::Vector3d& l : m.entries[e].look_prior)
+      nearest = std::min(nearest, (l - look).squaredNorm());
+    m.seen.emplace_back(nearest, e);
   }
   std::sort(m.seen.begin(), m.seen.end());
   if (m.seen.size() > m.carvers.size()) m.seen.resize(m.carvers.size());

@@ -58,6 +58,7 @@ struct Scene {
   int static_points_near = 0;              // static prior points within 4 m of a current camera
   int total_points = 0;                    // in the prior segment
   std::vector<CloudPoint> points_segment;  // the prior segment's points (ghost included)
+  SegmentRecord record;                    // the prior segment as stored
 };
 
 bool near_a_camera(const Scene& s, const Eigen::Vector3d& p_prior) {
@@ -141,6 +142,7 @@ const Scene& scene() {
     auto store = MapStore::open(out->prior_dir, meta);
     EXPECT_TRUE(store.ok());
     EXPECT_TRUE(store->write_segment(seg).ok());
+    out->record = seg;
     return out;
   }();
   return *s;
@@ -405,6 +407,47 @@ TEST(PriorPoseRefiner, GivenARelocalizationSizedErrorThenTheConstrainedDirection
   EXPECT_GE(directions, 2 * converged);
   EXPECT_GE(worst_before_m, 0.01);
   EXPECT_LE(worst_after_m, 0.002);
+}
+
+// Which prior segment a keyframe opens when there are more in range than slots: the one whose
+// keyframes looked where this camera looks. Two segments hold the same points (ghost included) and
+// keyframes at the same places, both boxes hold every camera; the decoy, segment 0, has its
+// keyframes turned to look back. With one slot the update opens segment 1 only and deletes the ghost
+// there. (By box distance alone both tie at 0 and the lower id, the decoy, won.)
+TEST(PriorMapUpdater, GivenMoreSegmentsInRangeThanSlotsThenTheOneThatLookedAtTheViewIsOpened) {
+  const Scene& s = scene();
+  const std::string dir = s.tmp.path() + "/two_segments";
+  StoreMetadata meta;
+  meta.run_id = "map-update-two-segments";
+  meta.intrinsics = s.K;
+  auto store = MapStore::open(dir, meta);
+  ASSERT_TRUE(store.ok());
+  SegmentRecord decoy = s.record;
+  decoy.segment_id = 0;
+  const Eigen::Isometry3d turn(Eigen::AngleAxisd(180.0 * kDeg, Eigen::Vector3d::UnitY()));
+  for (StoredKeyframe& kf : decoy.keyframes) kf.T_world_cam = kf.T_world_cam * turn;
+  SegmentRecord real = s.record;
+  real.segment_id = 1;
+  ASSERT_TRUE(store->write_segment(decoy).ok());
+  ASSERT_TRUE(store->write_segment(real).ok());
+
+  PriorMapUpdaterConfig config;
+  config.max_open_segments = 1;
+  auto u = PriorMapUpdater::create(dir, config, s.K);
+  ASSERT_TRUE(u.ok()) << u.status().message();
+  Collect sink;
+  for (const CurrentFrame& f : s.current) ASSERT_TRUE(u->observe(f.depth_m, f.T_prior_cam_true, &sink).ok());
+  ASSERT_TRUE(u->finish(&sink).ok());
+  EXPECT_EQ(u->counters().segments_opened, 1u);
+  ASSERT_EQ(sink.segments.size(), 1u);
+  EXPECT_EQ(sink.segments[0].segment_id, 1u);
+  int ghost_left = 0;
+  for (const CloudPoint& p : sink.segments[0].points_segment) {
+    ghost_left += s.ghost_box_segment.contains(Eigen::Vector3d(p.x_m, p.y_m, p.z_m)) ? 1 : 0;
+  }
+  EXPECT_LT(ghost_left, s.ghost_points / 2);
+  config.look_ahead_m = -1;
+  EXPECT_EQ(PriorMapUpdater::create(dir, config, s.K).status().code(), core::ErrorCode::kInvalidArgument);
 }
 
 TEST(PriorMapUpdater, GivenBadInputsThenClearErrors) {
