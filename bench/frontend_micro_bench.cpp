@@ -207,7 +207,7 @@ void BM_FrontendLshBuildAndMatch(benchmark::State& state) {
 BENCHMARK(BM_FrontendLshBuildAndMatch)->Unit(benchmark::kMillisecond);
 
 // The relocalizer's pattern: the current keyframe indexed once, then matched with many prior
-// keyframes (LSH: match only; exact: cv::batchDistance each time).
+// keyframes (LSH: match only; exact: every pair each time).
 void BM_FrontendLshMatchOnly(benchmark::State& state) {
   const MatchSetup& s = match_setup();
   if (!s.ok) {

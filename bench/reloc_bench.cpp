@@ -586,7 +586,8 @@ int run_reloc(int argc, char** argv) {
   if (o.starts < 1 || o.false_starts < 0 || o.max_attempts < 1 || !(o.first_motion_m > 0) ||
       !(o.attempt_step_m > 0) || !(o.max_motion_m >= o.first_motion_m) || !(o.start_walk_m >= 0)) {
     std::fprintf(stderr,
-                 "reloc: need --starts >= 1, --false-starts >= 0, --max-attempts >= 1, motions > 0\n");
+                 "reloc: need --starts >= 1, --false-starts >= 0, --max-attempts >= 1, motions > 0, "
+                 "--max-motion-m >= --first-motion-m, --start-walk-m >= 0\n");
     return 2;
   }
   const auto t_bench = std::chrono::steady_clock::now();

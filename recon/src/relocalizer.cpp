@@ -709,6 +709,10 @@ core::Expected<Relocalizer> Relocalizer::create(const RelocalizerConfig& c, cons
         "orb_refine_keyframes >= 0, orb_refine_min_inliers and orb_refine_converged_min_inliers >= 6 "
         "required");
   }
+  if (c.lsh.max_distance < 0 || c.lsh.max_distance > 256 || !(c.lsh.ratio > 0.0f && c.lsh.ratio <= 1.0f)) {
+    return core::InvalidArgument(
+        "relocalizer: lsh.max_distance in [0, 256] and lsh.ratio in (0, 1] required (keyframe matching)");
+  }
   if (c.vote_lsh.tables < 1 || c.vote_lsh.tables > 16 || c.vote_lsh.key_bits < 1 ||
       c.vote_lsh.key_bits > 20 || c.vote_lsh.multi_probe < 0 || c.vote_lsh.multi_probe > 2) {
     return core::InvalidArgument(

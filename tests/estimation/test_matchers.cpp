@@ -233,8 +233,8 @@ TEST(LshMatcher, SyntheticDescriptorsMatchTheirCopies) {
   const int n = 600;
   FrameFeatures train(n, 640, 480), query(n, 640, 480);
   // Query k is a noisy copy of train (k * 7) % n for the first half; random for the rest.
-  descriptor_pair(
-      rng, n, n / 2, n, [](int) { return 12; }, &train, &query);
+  ASSERT_NO_FATAL_FAILURE(descriptor_pair(
+      rng, n, n / 2, n, [](int) { return 12; }, &train, &query));
   LshMatcher lsh(n, LshConfig{});
   lsh.build(train);
   EXPECT_EQ(lsh.indexed(), n);
@@ -309,8 +309,8 @@ TEST(ExactMatcher, GivenSyntheticDescriptorsThenTheMatchesAreTheOraclesExactly) 
   FrameFeatures train(n, 640, 480), query(n, 640, 480);
   // Noisy copies of the first half (some two per train feature, so that ownership matters), then
   // random ones.
-  descriptor_pair(
-      rng, n, 3 * n / 4, n / 2, [](int k) { return 4 + k % 20; }, &train, &query);
+  ASSERT_NO_FATAL_FAILURE(descriptor_pair(
+      rng, n, 3 * n / 4, n / 2, [](int k) { return 4 + k % 20; }, &train, &query));
   const ExactMatchConfig cfg;
   // The oracle: per query its nearest and second nearest, the tests, then one owner per train.
   std::vector<int> owner(n, -1), owner_d(n, 257);
@@ -340,7 +340,14 @@ TEST(ExactMatcher, GivenSyntheticDescriptorsThenTheMatchesAreTheOraclesExactly) 
   EXPECT_EQ(exact.match(query, out.data(), n), 0) << "before build()";
   exact.build(train);
   EXPECT_EQ(exact.indexed(), n);
-  const int m = exact.match(query, out.data(), n);
+  exact.match(query, out.data(), n);  // warm-up
+  uint64_t allocations = 0;
+  int m = 0;
+  {
+    core::AllocationScope scope;
+    m = exact.match(query, out.data(), n);
+    allocations = scope.allocations();
+  }
   ASSERT_EQ(m, expected);
   ASSERT_GT(m, n / 3);
   for (int k = 0; k < m; ++k) {
@@ -351,13 +358,27 @@ TEST(ExactMatcher, GivenSyntheticDescriptorsThenTheMatchesAreTheOraclesExactly) 
       EXPECT_LT(out[static_cast<size_t>(k - 1)].train, fm.train);
     }
   }
-  // max_out caps the output; a single train descriptor has no second neighbour (no ratio test).
+  EXPECT_EQ(allocations, 0u);
+  // max_out caps the output; an empty query matches nothing; a single train descriptor has no second
+  // neighbour (no ratio test): its closest query within max_distance owns it.
   EXPECT_EQ(exact.match(query, out.data(), 10), 10);
+  EXPECT_EQ(exact.match(FrameFeatures(1, 640, 480), out.data(), n), 0);
   FrameFeatures one(1, 640, 480);
   ASSERT_EQ(one.push_back(Feature{}, train.descriptor(0)), 0);
   exact.build(one);
-  ASSERT_GE(exact.match(query, out.data(), n), 1);
+  int closest = -1, closest_d = 257;
+  for (int q = 0; q < n; ++q) {
+    const int d = hamming_distance(query.descriptor(q), train.descriptor(0));
+    if (d < closest_d) {
+      closest_d = d;
+      closest = q;
+    }
+  }
+  ASSERT_LE(closest_d, cfg.max_distance);
+  ASSERT_EQ(exact.match(query, out.data(), n), 1);
   EXPECT_EQ(out[0].train, 0);
+  EXPECT_EQ(out[0].query, closest);
+  EXPECT_EQ(out[0].distance, closest_d);
 }
 
 }  // namespace

@@ -612,6 +612,8 @@ TEST(Relocalizer, GivenAConvergedFitThenTheOrbPolishMovesThePoseOrRejectsAFitItC
   EXPECT_EQ(rr.reason, RelocalizationReason::kNotVerified);
   EXPECT_NE(rr.message.find("disagrees with the NDT fit (the ORB fit is"), std::string::npos) << rr.message;
   EXPECT_TRUE(rr.best_fit_valid);
+  EXPECT_TRUE(rr.T_prior_world.isApprox(Eigen::Isometry3d::Identity()));         // no pose to use
+  EXPECT_LT(pose_errors(rr.T_prior_world_best_fit, r0.T_prior_world).m, 0.002);  // NDT's fit, judged
   // Without that rule the polish is only not taken: NDT's pose stays.
   Relocalizer tight_keep = make(true, 1e-6, RelocalizerConfig{}.orb_refine_min_inliers,
                                 RelocalizerConfig{}.orb_refine_converged_min_inliers, false);
@@ -908,6 +910,11 @@ TEST(Relocalizer, GivenAGroundOnlyLocalMapThenTheAttemptEndsAtOnceForTooLittleSt
   EXPECT_FALSE(u.localized) << u.message;
   c.min_attempt_structure_points = -1;
   EXPECT_FALSE(Relocalizer::create(c, walk().K, kMaxFeatures).ok());
+  for (float ratio : {0.0f, 1.5f, std::nanf("")}) {
+    c = RelocalizerConfig{};
+    c.lsh.ratio = ratio;
+    EXPECT_FALSE(Relocalizer::create(c, walk().K, kMaxFeatures).ok()) << ratio;
+  }
 }
 
 TEST(Relocalizer, GivenAnInvalidQueryThenAnErrorReasonAndNoPose) {

@@ -1,20 +1,18 @@
 #pragma once
 // Exhaustive descriptor matching between two keyframes (relocalization: the current keyframe
 // against one prior keyframe at a time, ~800 x 800): the exact 2 nearest neighbours by Hamming
-// distance (OpenCV's cv::batchDistance, NORM_HAMMING, K = 2: its vectorised popcount), Lowe's ratio
-// test and max_distance, one match per train feature (the closer query keeps it). The same contract
-// as LshMatcher (lsh_matcher.hpp) without its misses: LSH finds the nearest neighbour only when a
-// probed bucket holds it, and the second rarely, so its ratio test is weaker. At these sizes it is
-// also faster than probing FLANN's 12 tables (hwr-bench micro --benchmark_filter='Lsh|Exact', teddy
-// frames: 2.9 ms per match against LSH's 6.0 ms, 146 against 155 matches).
+// distance (descriptor.hpp), Lowe's ratio test and max_distance, one match per train feature (the
+// closer query keeps it). The same contract as LshMatcher (lsh_matcher.hpp) without its misses: LSH
+// finds the nearest neighbour only when a probed bucket holds it, and the second rarely, so its ratio
+// test is weaker. At these sizes it is also faster than probing FLANN's 12 tables (hwr-bench micro
+// --benchmark_filter='Lsh|Exact', teddy frames, one thread: see docs/estimation.md).
 //
-// Off the per-frame path (the relocalization worker's thread): build() copies the train descriptors
-// into a buffer sized at construction; match() keeps its output matrices, but cv::batchDistance
-// allocates working memory on every call (64 allocations for 500 x 500).
+// A plain loop on the caller's thread, not cv::batchDistance: that one runs on OpenCV's thread pool
+// (every core, beside the control loop) and allocates on every call. build() copies the train
+// descriptors into a buffer sized at construction; match() allocates nothing.
 
+#include <cstdint>
 #include <vector>
-
-#include <opencv2/core.hpp>
 
 #include "hwr/estimation/frame_features.hpp"
 #include "hwr/estimation/projection_matcher.hpp"
@@ -41,8 +39,7 @@ class ExactMatcher {
   int max_descriptors_;
   ExactMatchConfig cfg_;
   int n_train_ = 0;
-  cv::Mat train_;        // max_descriptors x 32 CV_8U
-  cv::Mat dist_, nidx_;  // batchDistance's output: query x 2 (CV_32S)
+  std::vector<uint8_t> train_;  // max_descriptors x 32
   std::vector<int> owner_, owner_d_;
 };
 

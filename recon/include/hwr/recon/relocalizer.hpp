@@ -267,9 +267,10 @@ struct RelocalizerConfig {
   // ratio 0.0134, just over the degeneracy test's 0.0125) was 3.45 cm off had 162-166
   // correspondences with the 5 nearest prior keyframes, so 200 refused its polish.
   int orb_refine_converged_min_inliers = 100;
-  // A polish refused because the ORB fit (its own gates passed) lies beyond the move limit means the
-  // keypoints near the camera contradict the NDT fit: the attempt is rejected (kNotVerified) instead
-  // of returning NDT's pose.
+  // A polish refused because the ORB fit (its inlier and sigma gates passed) lies beyond the move
+  // limit means the keypoints near the camera contradict the NDT fit: the attempt is rejected
+  // (kNotVerified) instead of returning NDT's pose. Neither the priors' gates nor NDT's score of the
+  // ORB pose is asked: the two measurements disagree either way (fail closed).
   bool orb_polish_rejects_beyond_move = true;
   int max_source_points = 8'000;    // the local cloud is subsampled (stride) to at most this
   int max_target_points = 150'000;  // the prior target is subsampled (stride) to at most this
@@ -382,7 +383,7 @@ struct RelocalizationResult {
   // The fine scores (per source point) of the keep_best hypotheses, best first; unused are 0.
   std::array<double, 3> best_scores{0, 0, 0};
   double best_inlier_ratio = 0;
-  int structure_points = 0;  // the local map's structure points (off horizontal planes, step e)
+  int structure_points = 0;  // the local map's structure points (off horizontal planes; steps 0, d, e)
   // Relative margin of the best fine score over the best distinct rival's the priors allow (fine and
   // coarse, the smaller). 1 when rivals were evaluated and none ended distinct from the best.
   double score_margin = 0;
