@@ -18,7 +18,7 @@ using DistanceType = HammingDistance::ResultType;
 // The two nearest distinct neighbours seen so far. FLANN's LSH visits a point once per table and
 // probe that holds it, so repeated indices are ignored. Fixed size: querying allocates nothing
 // (FLANN's own KNN result sets allocate per knnSearch call).
-class TwoNearest : public flann::ResultSet<DistanceType> {
+class FlannTwoNearest : public flann::ResultSet<DistanceType> {
  public:
   void reset() {
     d_[0] = d_[1] = std::numeric_limits<DistanceType>::max();
@@ -63,8 +63,7 @@ LshMatcher::LshMatcher(int max_descriptors, const LshConfig& cfg)
     : max_descriptors_(std::max(max_descriptors, 1)),
       cfg_(cfg),
       train_(static_cast<size_t>(max_descriptors_) * kOrbDescriptorBytes, 0),
-      owner_(static_cast<size_t>(max_descriptors_), -1),
-      owner_d_(static_cast<size_t>(max_descriptors_), 256) {
+      owners_(max_descriptors_) {
   // FLANN's LSH keys are at most 32 bits; keep the configuration inside what it accepts.
   cfg_.tables = std::max(1, cfg_.tables);
   cfg_.key_bits = std::clamp(cfg_.key_bits, 1, 31);
@@ -89,10 +88,9 @@ int LshMatcher::match(const FrameFeatures& query, FeatureMatch* out, int max_out
   if (!index_ || n_train_ == 0) return 0;
   const int nq = std::min(query.size(), max_descriptors_);
   if (nq == 0) return 0;
-  std::fill(owner_.begin(), owner_.begin() + n_train_, -1);
-  std::fill(owner_d_.begin(), owner_d_.begin() + n_train_, 256);
+  owners_.reset(n_train_);
   const flann::SearchParams params;
-  TwoNearest nn;
+  FlannTwoNearest nn;
   for (int q = 0; q < nq; ++q) {
     nn.reset();
     index_->lsh.findNeighbors(nn, query.descriptor(q), params);
@@ -105,17 +103,9 @@ int LshMatcher::match(const FrameFeatures& query, FeatureMatch* out, int max_out
         static_cast<float>(best) >= cfg_.ratio * static_cast<float>(nn.distance(1))) {
       continue;
     }
-    if (best < owner_d_[j]) {
-      owner_[j] = q;
-      owner_d_[j] = best;
-    }
+    owners_.offer(static_cast<int>(j), q, best);
   }
-  int count = 0;
-  for (int j = 0; j < n_train_ && count < max_out; ++j) {
-    if (owner_[static_cast<size_t>(j)] < 0) continue;
-    out[count++] = {owner_[static_cast<size_t>(j)], j, owner_d_[static_cast<size_t>(j)]};
-  }
-  return count;
+  return owners_.write(out, max_out);
 }
 
 }  // namespace hwr::estimation

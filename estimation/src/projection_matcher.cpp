@@ -11,16 +11,14 @@ ProjectionMatcher::ProjectionMatcher(int max_points, int max_features)
     : max_points_(std::max(max_points, 0)),
       max_features_(std::max(max_features, 0)),
       candidates_(static_cast<size_t>(std::max(max_features, 1))),
-      owner_(static_cast<size_t>(std::max(max_features, 1)), -1),
-      owner_d_(static_cast<size_t>(std::max(max_features, 1)), 256) {}
+      owners_(max_features) {}
 
 int ProjectionMatcher::match(const MapPointRef* points, int n, const Eigen::Isometry3d& T_cam_world,
                              const hal::PinholeIntrinsics& K, const FrameFeatures& frame,
                              const ProjectionMatchConfig& cfg, FeatureMatch* out, int max_out) {
   const int n_points = std::min(n, max_points_);
   const int n_features = std::min(frame.size(), max_features_);
-  std::fill(owner_.begin(), owner_.begin() + n_features, -1);
-  std::fill(owner_d_.begin(), owner_d_.begin() + n_features, 256);
+  owners_.reset(n_features);
   const Eigen::Matrix3d R = T_cam_world.linear();
   const Eigen::Vector3d t = T_cam_world.translation();
   const float w = static_cast<float>(K.width), h = static_cast<float>(K.height);
@@ -44,33 +42,18 @@ int ProjectionMatcher::match(const MapPointRef* points, int n, const Eigen::Isom
     }
     const int nc = frame.features_in_radius(u, v, radius, min_oct, max_oct, candidates_.data(),
                                             static_cast<int>(candidates_.size()));
-    int best = 257, second = 257, best_j = -1;
+    TwoNearest nn;
     for (int k = 0; k < nc; ++k) {
       const int j = candidates_[static_cast<size_t>(k)];
       if (j >= n_features) continue;
-      const int d = hamming_distance(mp.descriptor, frame.descriptor(j));
-      if (d < best) {
-        second = best;
-        best = d;
-        best_j = j;
-      } else if (d < second) {
-        second = d;
-      }
+      nn.add(hamming_distance(mp.descriptor, frame.descriptor(j)), j);
     }
-    if (best_j < 0 || best > cfg.max_distance) continue;
-    if (second <= 256 && static_cast<float>(best) >= cfg.ratio * static_cast<float>(second)) continue;
-    if (best < owner_d_[static_cast<size_t>(best_j)]) {
-      owner_[static_cast<size_t>(best_j)] = i;
-      owner_d_[static_cast<size_t>(best_j)] = best;
-    }
+    if (nn.index < 0 || nn.best > cfg.max_distance) continue;
+    if (nn.second <= 256 && static_cast<float>(nn.best) >= cfg.ratio * static_cast<float>(nn.second))
+      continue;
+    owners_.offer(nn.index, i, nn.best);
   }
-
-  int count = 0;
-  for (int j = 0; j < n_features && count < max_out; ++j) {
-    if (owner_[static_cast<size_t>(j)] < 0) continue;
-    out[count++] = {owner_[static_cast<size_t>(j)], j, owner_d_[static_cast<size_t>(j)]};
-  }
-  return count;
+  return owners_.write(out, max_out);
 }
 
 }  // namespace hwr::estimation

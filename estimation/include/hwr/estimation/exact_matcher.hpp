@@ -15,7 +15,7 @@
 #include <vector>
 
 #include "hwr/estimation/frame_features.hpp"
-#include "hwr/estimation/projection_matcher.hpp"
+#include "hwr/estimation/match_selection.hpp"
 
 namespace hwr::estimation {
 
@@ -40,7 +40,7 @@ class ExactMatcher {
   ExactMatchConfig cfg_;
   int n_train_ = 0;
   std::vector<uint8_t> train_;  // max_descriptors x 32
-  std::vector<int> owner_, owner_d_;
+  TrainOwners owners_;
 };
 
 }  // namespace hwr::estimation

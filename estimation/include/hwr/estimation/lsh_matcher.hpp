@@ -47,7 +47,7 @@ class LshMatcher {
   LshConfig cfg_;
   int n_train_ = 0;
   std::vector<uint8_t> train_;  // max_descriptors x 32
-  std::vector<int> owner_, owner_d_;
+  TrainOwners owners_;
   std::vector<size_t> knn_indices_;      // max_descriptors x 2
   std::vector<unsigned int> knn_dists_;  // max_descriptors x 2
   std::unique_ptr<Index> index_;

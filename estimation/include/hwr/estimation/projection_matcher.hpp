@@ -9,6 +9,7 @@
 #include <Eigen/Geometry>
 
 #include "hwr/estimation/frame_features.hpp"
+#include "hwr/estimation/match_selection.hpp"
 #include "hwr/hal/pinhole_camera.hpp"
 
 namespace hwr::estimation {
@@ -17,13 +18,6 @@ struct MapPointRef {
   Eigen::Vector3d p_world;
   const uint8_t* descriptor;  // 32 bytes
   int octave_hint = -1;       // octave the point was seen at; -1: unknown (any octave, radius_px)
-};
-
-// query: map point / feature of A; train: feature index in the frame / B.
-struct FeatureMatch {
-  int query = -1;
-  int train = -1;
-  int distance = 256;
 };
 
 struct ProjectionMatchConfig {
@@ -50,8 +44,7 @@ class ProjectionMatcher {
   int max_points_;
   int max_features_;
   std::vector<int> candidates_;
-  std::vector<int> owner_;    // per frame feature: matched point or -1
-  std::vector<int> owner_d_;  // its distance
+  TrainOwners owners_;  // per frame feature: the matched point and its distance
 };
 
 }  // namespace hwr::estimation
