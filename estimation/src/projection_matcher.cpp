@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "hwr/estimation/descriptor.hpp"
+#include "hwr/estimation/hamming_kernel.hpp"
 
 namespace hwr::estimation {
 
@@ -11,6 +12,7 @@ ProjectionMatcher::ProjectionMatcher(int max_points, int max_features)
     : max_points_(std::max(max_points, 0)),
       max_features_(std::max(max_features, 0)),
       candidates_(static_cast<size_t>(std::max(max_features, 1))),
+      distances_(static_cast<size_t>(std::max(max_features, 1))),
       owners_(max_features) {}
 
 int ProjectionMatcher::match(const MapPointRef* points, int n, const Eigen::Isometry3d& T_cam_world,
@@ -42,11 +44,16 @@ int ProjectionMatcher::match(const MapPointRef* points, int n, const Eigen::Isom
     }
     const int nc = frame.features_in_radius(u, v, radius, min_oct, max_oct, candidates_.data(),
                                             static_cast<int>(candidates_.size()));
+    if (nc > 0) {
+      // Feature indices are non-negative: the int array is read as its unsigned variant.
+      hamming_distances_at(mp.descriptor, frame.descriptor(0),
+                           reinterpret_cast<const uint32_t*>(candidates_.data()), nc, distances_.data());
+    }
     TwoNearest nn;
     for (int k = 0; k < nc; ++k) {
       const int j = candidates_[static_cast<size_t>(k)];
       if (j >= n_features) continue;
-      nn.add(hamming_distance(mp.descriptor, frame.descriptor(j)), j);
+      nn.add(distances_[static_cast<size_t>(k)], j);
     }
     if (nn.index < 0 || nn.best > cfg.max_distance) continue;
     if (nn.second <= 256 && static_cast<float>(nn.best) >= cfg.ratio * static_cast<float>(nn.second))

@@ -7,9 +7,10 @@
 // test is weaker. At these sizes it is also faster than probing FLANN's 12 tables (hwr-bench micro
 // --benchmark_filter='Lsh|Exact', teddy frames, one thread: see docs/estimation.md).
 //
-// A plain loop on the caller's thread, not cv::batchDistance: that one runs on OpenCV's thread pool
-// (every core, beside the control loop) and allocates on every call. build() copies the train
-// descriptors into a buffer sized at construction; match() allocates nothing.
+// A plain loop on the caller's thread (one query row at a time through hamming_kernel.hpp, which
+// uses the CPU's population count instruction where it has one), not cv::batchDistance: that one runs on
+// OpenCV's thread pool (every core, beside the control loop) and allocates on every call. build() copies the
+// train descriptors into a buffer sized at construction; match() allocates nothing.
 
 #include <cstdint>
 #include <vector>
@@ -41,6 +42,7 @@ class ExactMatcher {
   int n_train_ = 0;
   std::vector<uint8_t> train_;  // max_descriptors x 32
   TrainOwners owners_;
+  std::vector<int> distances_;  // one query row's distances to every train descriptor
 };
 
 }  // namespace hwr::estimation

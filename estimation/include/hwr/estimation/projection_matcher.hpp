@@ -44,7 +44,8 @@ class ProjectionMatcher {
   int max_points_;
   int max_features_;
   std::vector<int> candidates_;
-  TrainOwners owners_;  // per frame feature: the matched point and its distance
+  std::vector<int> distances_;  // the candidates' Hamming distances (hamming_kernel.hpp)
+  TrainOwners owners_;          // per frame feature: the matched point and its distance
 };
 
 }  // namespace hwr::estimation
