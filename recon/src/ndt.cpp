@@ -599,6 +599,34 @@ NdtResult NdtAligner::align_level(const NdtTarget& target, const PointsView& sou
   return result;
 }
 
+NdtResult NdtAligner::align_prebuilt(const NdtTarget* const* levels, int n_levels, const PointsView& source,
+                                     const Eigen::Isometry3d& T_target_source_guess) {
+  NdtResult result;
+  SourceStats stats;
+  if (!check_inputs(impl_->config, source, T_target_source_guess, &stats, &result)) return result;
+  if (levels == nullptr || n_levels < 1) {
+    result.failure = NdtFailure::kInvalidInput;
+    return result;
+  }
+  for (int l = 0; l < n_levels; ++l) {
+    if (levels[l] == nullptr || !(levels[l]->resolution_m() > 0)) {
+      result.failure = NdtFailure::kInvalidInput;
+      return result;
+    }
+  }
+  Evaluation cur;
+  cur.T = result.T_target_source;
+  Eigen::Vector3d pivot = Eigen::Vector3d::Zero();
+  const double finest_m = levels[n_levels - 1]->resolution_m();
+  for (int l = 0; l < n_levels; ++l) {
+    // A coarse level only seeds the next one: its epsilons grow with its voxel side (as in align()).
+    const double epsilon_scale = std::max(1.0, levels[l]->resolution_m() / finest_m);
+    if (!impl_->level(*levels[l]->impl_, source, stats, epsilon_scale, &cur, &pivot, &result)) return result;
+  }
+  finish(impl_->config, cur, pivot, stats, &result);
+  return result;
+}
+
 NdtResult NdtAligner::align(const PointsView& target, const PointsView& source,
                             const Eigen::Isometry3d& T_target_source_guess, uint64_t target_version) {
   NdtResult result;

@@ -154,75 +154,91 @@ NdtTarget& NdtTarget::operator=(NdtTarget&&) noexcept = default;
 NdtTarget::~NdtTarget() = default;
 
 int NdtTarget::gaussian_voxels() const { return impl_->gaussian_count; }
+int NdtTarget::occupied_voxels() const { return impl_->voxels; }
 double NdtTarget::resolution_m() const { return impl_->resolution_m; }
 int NdtTarget::skipped_points() const { return impl_->skipped_points; }
 
 core::Status NdtTarget::build(const PointsView& target, double resolution_m) {
+  return build(&target, 1, resolution_m);
+}
+
+core::Status NdtTarget::build(const PointsView* targets, int n_targets, double resolution_m) {
   Impl& m = *impl_;
   m.clear();
   if (!(resolution_m > 0.0) || !std::isfinite(resolution_m)) {
     return core::InvalidArgument("ndt target: resolution must be positive and finite, got " +
                                  std::to_string(resolution_m));
   }
-  if (target.n < 0 || (target.n > 0 && target.xyz == nullptr) || target.stride_floats < 3) {
-    return core::InvalidArgument(
-        "ndt target: the points view needs n >= 0, a pointer when n > 0 and stride >= 3");
+  if (n_targets < 0 || (n_targets > 0 && targets == nullptr)) {
+    return core::InvalidArgument("ndt target: n_targets >= 0 views and a pointer to them required");
   }
-  if (target.n > m.config.max_target_points) {
-    return core::OutOfRange(
-        "ndt target: " + std::to_string(target.n) + " points exceed max_target_points = " +
-        std::to_string(m.config.max_target_points) + "; raise it or downsample the target");
+  int64_t total = 0;
+  for (int t = 0; t < n_targets; ++t) {
+    const PointsView& target = targets[t];
+    if (target.n < 0 || (target.n > 0 && target.xyz == nullptr) || target.stride_floats < 3) {
+      return core::InvalidArgument(
+          "ndt target: the points view needs n >= 0, a pointer when n > 0 and stride >= 3");
+    }
+    total += target.n;
+  }
+  if (total > m.config.max_target_points) {
+    return core::OutOfRange("ndt target: " + std::to_string(total) + " points exceed max_target_points = " +
+                            std::to_string(m.config.max_target_points) +
+                            "; raise it or downsample the target");
   }
   m.resolution_m = resolution_m;
   m.inv_resolution = 1.0 / resolution_m;
   m.constants = ndt_score_constants(m.config.outlier_ratio, resolution_m);
 
   // Pass 1: points into voxels (count, sums about the voxel's first point).
-  for (int i = 0; i < target.n; ++i) {
-    const Eigen::Vector3f p = target.at(i);
-    int64_t ix = 0, iy = 0, iz = 0;
-    uint64_t key = 0;
-    if (!p.allFinite() || !ndt_voxel_index(p.x(), m.inv_resolution, &ix) ||
-        !ndt_voxel_index(p.y(), m.inv_resolution, &iy) || !ndt_voxel_index(p.z(), m.inv_resolution, &iz) ||
-        !ndt_pack_key(ix, iy, iz, &key)) {
-      ++m.skipped_points;
-      continue;
-    }
-    size_t s = m.slot_of(key);
-    while (m.slots[s].key != kNdtEmptyKey && m.slots[s].key != key) s = (s + 1) & m.mask;
-    int32_t v = m.slots[s].voxel;
-    if (m.slots[s].key == kNdtEmptyKey) {
-      if (m.voxels >= m.config.max_target_voxels) {
-        m.clear();
-        return core::OutOfRange("ndt target: more than max_target_voxels = " +
-                                std::to_string(m.config.max_target_voxels) + " occupied voxels at " +
-                                std::to_string(resolution_m) + " m; raise it or use a coarser resolution");
+  for (int t = 0; t < n_targets; ++t) {
+    const PointsView& target = targets[t];
+    for (int i = 0; i < target.n; ++i) {
+      const Eigen::Vector3f p = target.at(i);
+      int64_t ix = 0, iy = 0, iz = 0;
+      uint64_t key = 0;
+      if (!p.allFinite() || !ndt_voxel_index(p.x(), m.inv_resolution, &ix) ||
+          !ndt_voxel_index(p.y(), m.inv_resolution, &iy) || !ndt_voxel_index(p.z(), m.inv_resolution, &iz) ||
+          !ndt_pack_key(ix, iy, iz, &key)) {
+        ++m.skipped_points;
+        continue;
       }
-      v = m.voxels++;
-      m.slots[s].key = key;
-      m.slots[s].voxel = v;
-      m.voxel_key[v] = key;
-      m.voxel_slot[v] = static_cast<int32_t>(s);
+      size_t s = m.slot_of(key);
+      while (m.slots[s].key != kNdtEmptyKey && m.slots[s].key != key) s = (s + 1) & m.mask;
+      int32_t v = m.slots[s].voxel;
+      if (m.slots[s].key == kNdtEmptyKey) {
+        if (m.voxels >= m.config.max_target_voxels) {
+          m.clear();
+          return core::OutOfRange("ndt target: more than max_target_voxels = " +
+                                  std::to_string(m.config.max_target_voxels) + " occupied voxels at " +
+                                  std::to_string(resolution_m) + " m; raise it or use a coarser resolution");
+        }
+        v = m.voxels++;
+        m.slots[s].key = key;
+        m.slots[s].voxel = v;
+        m.voxel_key[v] = key;
+        m.voxel_slot[v] = static_cast<int32_t>(s);
+        Impl::Accumulator& a = m.accumulators[v];
+        a = Impl::Accumulator{};
+        a.ref[0] = p.x();
+        a.ref[1] = p.y();
+        a.ref[2] = p.z();
+      }
       Impl::Accumulator& a = m.accumulators[v];
-      a = Impl::Accumulator{};
-      a.ref[0] = p.x();
-      a.ref[1] = p.y();
-      a.ref[2] = p.z();
+      const double dx = static_cast<double>(p.x()) - a.ref[0];
+      const double dy = static_cast<double>(p.y()) - a.ref[1];
+      const double dz = static_cast<double>(p.z()) - a.ref[2];
+      ++a.count;
+      a.sum[0] += dx;
+      a.sum[1] += dy;
+      a.sum[2] += dz;
+      a.outer[0] += dx * dx;
+      a.outer[1] += dx * dy;
+      a.outer[2] += dx * dz;
+      a.outer[3] += dy * dy;
+      a.outer[4] += dy * dz;
+      a.outer[5] += dz * dz;
     }
-    Impl::Accumulator& a = m.accumulators[v];
-    const double dx = static_cast<double>(p.x()) - a.ref[0];
-    const double dy = static_cast<double>(p.y()) - a.ref[1];
-    const double dz = static_cast<double>(p.z()) - a.ref[2];
-    ++a.count;
-    a.sum[0] += dx;
-    a.sum[1] += dy;
-    a.sum[2] += dz;
-    a.outer[0] += dx * dx;
-    a.outer[1] += dx * dy;
-    a.outer[2] += dx * dz;
-    a.outer[3] += dy * dy;
-    a.outer[4] += dy * dz;
-    a.outer[5] += dz * dz;
   }
 
   // Pass 2: a Gaussian per voxel with enough points.

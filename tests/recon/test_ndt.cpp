@@ -434,6 +434,51 @@ TEST(Ndt, GivenATargetVersionThenTheTargetIsReusedUntilTheVersionOrBufferChanges
   EXPECT_LT(translation_error_m(other.T_target_source, p.T_true), 1e-3);
 }
 
+TEST(Ndt, GivenTargetsPrebuiltPerLevelThenAlignPrebuiltEqualsAlignOverTheSameLevels) {
+  // The room cut into two views (a map held in pieces): one multi-view build per level equals a
+  // build of the whole, and aligning over those prebuilt levels equals align() over the room.
+  const Pair p = room_pair(0.1, pose({0.35, -0.25, 0.05}, {0.02, -0.01, 6 * kDeg}));
+  const int half = p.target.size() / 2;
+  const PointsView pieces[2] = {{p.target.xyz.data(), half, 3},
+                                {p.target.xyz.data() + 3 * half, p.target.size() - half, 3}};
+  NdtConfig config;  // levels 2, 1, 0.5 m
+  NdtAligner ndt = make_aligner(config);
+  std::vector<NdtTarget> levels;
+  for (double r : {2.0, 1.0, 0.5}) {
+    auto whole = NdtTarget::create(config);
+    auto split = NdtTarget::create(config);
+    ASSERT_TRUE(whole.ok() && split.ok());
+    ASSERT_TRUE(whole->build(p.target.view(), r).ok());
+    ASSERT_TRUE(split->build(pieces, 2, r).ok());
+    EXPECT_EQ(split->occupied_voxels(), whole->occupied_voxels()) << r;
+    EXPECT_EQ(split->gaussian_voxels(), whole->gaussian_voxels()) << r;
+    EXPECT_DOUBLE_EQ(
+        ndt.evaluate(*split, p.source.view(), x_of(p.T_true, Eigen::Vector3d::Zero()), nullptr, nullptr),
+        ndt.evaluate(*whole, p.source.view(), x_of(p.T_true, Eigen::Vector3d::Zero()), nullptr, nullptr))
+        << r;
+    levels.push_back(std::move(split).value());
+  }
+  const NdtTarget* level_ptrs[3] = {&levels[0], &levels[1], &levels[2]};
+  const NdtResult a = ndt.align(p.target.view(), p.source.view(), Eigen::Isometry3d::Identity());
+  const NdtResult b = ndt.align_prebuilt(level_ptrs, 3, p.source.view(), Eigen::Isometry3d::Identity());
+  ASSERT_TRUE(a.converged);
+  ASSERT_TRUE(b.converged) << ndt_failure_name(b.failure);
+  EXPECT_EQ(a.iterations, b.iterations);
+  EXPECT_EQ(a.levels, b.levels);
+  EXPECT_EQ(a.score, b.score);
+  EXPECT_EQ(a.T_target_source.matrix(), b.T_target_source.matrix());
+  // Invalid: no level, a null level.
+  EXPECT_EQ(ndt.align_prebuilt(level_ptrs, 0, p.source.view(), p.T_true).failure, NdtFailure::kInvalidInput);
+  const NdtTarget* with_null[3] = {&levels[0], nullptr, &levels[2]};
+  EXPECT_EQ(ndt.align_prebuilt(with_null, 3, p.source.view(), p.T_true).failure, NdtFailure::kInvalidInput);
+  // A multi-view build bounds the views' points together by max_target_points.
+  NdtConfig small = config;
+  small.max_target_points = p.target.size() - 1;
+  auto bounded = NdtTarget::create(small);
+  ASSERT_TRUE(bounded.ok());
+  EXPECT_EQ(bounded->build(pieces, 2, 0.5).code(), core::ErrorCode::kOutOfRange);
+}
+
 TEST(Ndt, GivenACreatedAlignerThenAligningAndBuildingAllocateNothing) {
   const Pair p = room_pair(0.12, pose({0.2, -0.2, 0.05}, {0.02, 0.0, 4 * kDeg}));
   for (int threads : {1, 3}) {

@@ -132,7 +132,11 @@ class NdtTarget {
   // max_target_points or more occupied voxels than max_target_voxels (kOutOfRange; the target is
   // then empty). Never allocates.
   core::Status build(const PointsView& target, double resolution_m);
+  // The same over several views at once (their points together: a map held in pieces, such as the
+  // relocalizer's prior segments); max_target_points bounds their sum.
+  core::Status build(const PointsView* targets, int n_targets, double resolution_m);
   int gaussian_voxels() const;
+  int occupied_voxels() const;  // with or without a Gaussian, last build
   double resolution_m() const;
   int skipped_points() const;  // non-finite or beyond the ±2^20-voxel key range, last build
   NdtTarget(NdtTarget&&) noexcept;
@@ -168,6 +172,13 @@ class NdtAligner {
   // One level against a prebuilt target (for callers that reuse a target over many sources).
   NdtResult align_level(const NdtTarget& target, const PointsView& source,
                         const Eigen::Isometry3d& T_target_source_guess);
+  // Coarse to fine over prebuilt targets, levels[0 .. n_levels), coarse first, each at the resolution
+  // it was built with (a caller that holds the targets of a static map: the relocalizer's whole
+  // prior). Iterations and epsilons are this aligner's config; a coarse level's epsilons grow with its
+  // side over the finest level's, as in align(). No level, or a null or unbuilt one, is an invalid
+  // input.
+  NdtResult align_prebuilt(const NdtTarget* const* levels, int n_levels, const PointsView& source,
+                           const Eigen::Isometry3d& T_target_source_guess);
 
   // For the derivative tests: the cost f = -sum s(p) at the pose T(x) (see the parameterisation at
   // the top, pivot `pivot_m`), and its gradient and Hessian with respect to a left perturbation
