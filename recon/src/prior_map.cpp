@@ -140,6 +140,7 @@ void PriorMap::evict(size_t index) {
   --counters_.loaded_segments;
   std::vector<CloudPoint>().swap(clouds_prior_[index]);  // release the memory
   s.loaded = false;
+  ++cloud_generation_;
   ++counters_.cloud_evictions;
 }
 
@@ -159,6 +160,7 @@ void PriorMap::mark_unreadable(size_t index, const core::Status& why) {
   // One damaged cloud must not stop every query over it: skip it from now on, say so once.
   PriorSegment& s = segments_[index];
   s.unreadable = true;
+  ++cloud_generation_;
   ++counters_.unreadable_segments;
   HWR_LOG_WARN("prior-map", "segment %u: cloud unreadable, skipped from now on: %s", s.segment_id,
                why.message().c_str());
@@ -198,10 +200,18 @@ core::Status PriorMap::load_cloud(size_t index) {
   s.cloud_box_known = true;
   s.points = static_cast<int64_t>(cloud.size());
   s.loaded = true;
+  ++cloud_generation_;
   counters_.loaded_points += s.points;
   ++counters_.loaded_segments;
   ++counters_.cloud_loads;
   return core::Status::Ok();
+}
+
+bool PriorMap::all_clouds_in_memory() const {
+  for (const PriorSegment& s : segments_) {
+    if (!s.loaded && !s.unreadable) return false;
+  }
+  return true;
 }
 
 PreloadStats PriorMap::preload_clouds(const std::function<bool()>& keep_going) {

@@ -381,6 +381,11 @@ TEST(PriorMap, GivenAThinningVoxelThenEachCloudHoldsItsVoxelMeansAndPreloadFills
   EXPECT_EQ(map->counters().cloud_evictions, 0u);
   EXPECT_EQ(map->counters().points_read, 3 * kPointsPerSegment);  // the third was read, then dropped
   const uint64_t loads = map->counters().cloud_loads;
+  // Segment 2 is on disk: not every cloud is in memory; the clouds in memory are the thinned ones.
+  EXPECT_FALSE(map->all_clouds_in_memory());
+  EXPECT_EQ(map->cloud(0).size(), expected[0].size());
+  EXPECT_TRUE(map->cloud(2).empty());
+  uint64_t generation = map->cloud_generation();
 
   // Segment 1 whole: its voxel means, from memory.
   std::vector<CloudPoint> out;
@@ -394,12 +399,23 @@ TEST(PriorMap, GivenAThinningVoxelThenEachCloudHoldsItsVoxelMeansAndPreloadFills
     for (const Eigen::Vector3d& e : expected[1]) nearest = std::min(nearest, (e - q).norm());
     EXPECT_LT(nearest, 1e-4);
   }
+  EXPECT_EQ(map->cloud_generation(), generation);  // served from memory: no cloud changed
   // Segment 2 needs room: read now, the least recently used preloaded cloud (segment 0) goes.
   st = map->points_near(segment_pose(2).translation(), 5.0, &out);
   ASSERT_TRUE(st.ok());
   EXPECT_EQ(out.size(), expected[2].size());
+  EXPECT_GT(map->cloud_generation(), generation);  // a structure built over the old clouds is stale
+  EXPECT_TRUE(map->cloud(0).empty());
   EXPECT_FALSE(map->segments()[0].loaded);
   EXPECT_LE(map->counters().loaded_points, config.max_loaded_points);
+  // A budget for all three: every cloud in memory after the preload.
+  PriorMapConfig roomy = config;
+  roomy.max_loaded_points = 3 * kPointsPerSegment;
+  auto all = PriorMap::open(tmp.file("store"), roomy);
+  ASSERT_TRUE(all.ok());
+  EXPECT_FALSE(all->all_clouds_in_memory());
+  EXPECT_EQ(all->preload_clouds().segments_in_memory, 3);
+  EXPECT_TRUE(all->all_clouds_in_memory());
 
   // Without the preload, a cloud never read is read and thinned before the budget judges it: the
   // stored 2000 points would not fit a budget of the thinned count, the thinned cloud does.

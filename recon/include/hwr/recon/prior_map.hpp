@@ -156,6 +156,14 @@ class PriorMap {
   // points_near). Returns how many segments are in memory afterwards. keep_going (optional) is asked
   // before each read: false stops the preload there (a robot shutting down does not wait for it).
   PreloadStats preload_clouds(const std::function<bool()>& keep_going = {});
+  // Every readable segment's cloud is in memory (none left on disk): the whole prior fits the point
+  // budget, and a structure over all of it (Relocalizer::prepare_targets) needs no query to read more.
+  bool all_clouds_in_memory() const;
+  // Segment i's cloud in the prior frame (thinned), empty when it is not in memory.
+  const std::vector<CloudPoint>& cloud(size_t segment_index) const { return clouds_prior_[segment_index]; }
+  // Changes whenever a cloud is read, evicted or found unreadable: a structure built over the clouds in
+  // memory is stale once it differs from the value it was built at.
+  uint64_t cloud_generation() const { return cloud_generation_; }
 
   PriorMap(PriorMap&&) noexcept = default;
   PriorMap& operator=(PriorMap&&) noexcept = default;
@@ -182,6 +190,7 @@ class PriorMap {
   std::vector<uint64_t> last_used_;                    // per segment: query stamp of its last use
   uint64_t stamp_ = 0;
   uint64_t instance_id_ = 0;
+  uint64_t cloud_generation_ = 0;
   int max_features_ = 0;
   PriorMapCounters counters_;
   std::vector<std::pair<double, size_t>> near_;  // scratch: (distance, segment index)
