@@ -26,6 +26,7 @@
 //                   [--attempt-step-m 1] [--max-motion-m 30] [--keyframe-step 12] [--verbose]
 //                   [--sets neither,imu,gnss,both] [--orb-refine all|weak|off] [--start-frames F,F,...]
 //                   [--min-attempt-structure N] [--start-walk-m 8.5] [--matching exact|lsh]
+//                   [--targets whole|gathered]
 //  --start-frames: these revisit frames instead of --starts random ones, in every scene of --scenes
 //    (to rerun the starts a verbose log names: --scenes outdoor --start-frames f4678); frames past a
 //    scene's last usable start are refused before its prior is opened. The false check (outdoor
@@ -90,6 +91,9 @@ struct Options {
   std::string orb_refine = "all";
   int min_attempt_structure = -1;  // --min-attempt-structure: RelocalizerConfig's (-1: its default)
   std::string matching = "exact";  // --matching exact|lsh (RelocalizerConfig::exact_matching)
+  // --targets whole|gathered: the whole prior's NDT targets built once (RelocalizerConfig::
+  // whole_prior_targets, the default) or the prior points gathered and voxelised per hypothesis.
+  std::string targets = "whole";
 };
 
 // ---- sensor sets (paper Table IV columns) ----
@@ -402,10 +406,14 @@ core::Status run_start(const Options& o, Prior* prior, recon::Relocalizer* reloc
         std::printf(
             "      stages: appearance %.3f s (index %.3f), geometry %.3f s, NDT %.3f s; %d candidates, "
             "%d ranked, %d RANSAC hypotheses, %d seeds, %d NDT runs (%d from rival seeds), "
-            "%d ORB rival keyframes (%d rivals), target <= %lld points, %d structure points\n",
+            "%d ORB rival keyframes (%d rivals), target <= %lld points, %d structure points\n"
+            "      NDT and acceptance: coarse %.3f s, fine %.3f s, verify %.3f s, rivals %.3f s, margin %.3f "
+            "s, "
+            "polish %.3f s\n",
             r.appearance_s, r.index_s, r.geometry_s, r.ndt_s, n.candidates, n.appearance_ranked,
             n.ransac_hypotheses, n.fallback_seeds, n.ndt_runs, n.rival_seeds, n.orb_rival_tests, n.orb_rivals,
-            static_cast<long long>(n.target_points), r.structure_points);
+            static_cast<long long>(n.target_points), r.structure_points, r.coarse_s, r.fine_s, r.verify_s,
+            r.rivals_s, r.margin_s, r.polish_s);
       }
       if (o.verbose && !r.localized && r.best_fit_valid) {
         // The rejected best fit: was the rejection right?
@@ -538,6 +546,12 @@ int run_reloc(int argc, char** argv) {
         std::fprintf(stderr, "reloc: --matching takes exact or lsh\n");
         return 2;
       }
+    } else if (a == "--targets") {
+      o.targets = value("--targets");
+      if (o.targets != "whole" && o.targets != "gathered") {
+        std::fprintf(stderr, "reloc: --targets takes whole or gathered\n");
+        return 2;
+      }
     } else if (a == "--min-attempt-structure") {
       o.min_attempt_structure = std::atoi(value("--min-attempt-structure").c_str());
     } else if (a == "--orb-refine") {
@@ -575,7 +589,7 @@ int run_reloc(int argc, char** argv) {
                    "       [--first-motion-m M] [--attempt-step-m M] [--max-motion-m M] [--keyframe-step N] "
                    "[--verbose]\n       [--sets neither,imu,gnss,both] [--orb-refine all|weak|off] "
                    "[--start-frames F,F,...]\n       [--min-attempt-structure N] [--start-walk-m M] "
-                   "[--matching exact|lsh]\n");
+                   "[--matching exact|lsh]\n       [--targets whole|gathered]\n");
       return a == "--help" || a == "-h" ? 0 : 2;
     }
   }
@@ -596,6 +610,7 @@ int run_reloc(int argc, char** argv) {
   rcfg.orb_refine_converged = o.orb_refine == "all";
   if (o.min_attempt_structure >= 0) rcfg.min_attempt_structure_points = o.min_attempt_structure;
   rcfg.exact_matching = o.matching == "exact";
+  rcfg.whole_prior_targets = o.targets == "whole";
   std::printf(
       "hwr-bench reloc: %d starts per scene (seed %llu), %d false starts (outdoor vs lab prior); attempts "
       "from %.1f m "
@@ -672,6 +687,16 @@ int run_reloc(int argc, char** argv) {
         static_cast<long long>(preload.points_in_memory), sc.prior->map->config().cloud_voxel_m,
         static_cast<long long>(sc.prior->map->counters().points_read), preload.segments_over_budget,
         static_cast<long long>(sc.prior->map->config().max_loaded_points), preload.segments_unreadable);
+    // As RelocalizationWorker does after the preload: the whole prior's NDT targets, once.
+    const recon::Relocalizer::WholePriorTargets whole = sc.reloc->prepare_targets(*sc.prior->map);
+    if (whole.built) {
+      std::printf("prior %s: whole-prior NDT targets in %.2f s: %d resolutions, %lld points, %lld voxels\n",
+                  name.c_str(), whole.seconds, whole.levels, static_cast<long long>(whole.points),
+                  static_cast<long long>(whole.voxels));
+    } else {
+      std::printf("prior %s: no whole-prior NDT targets (%s): each attempt gathers its own\n", name.c_str(),
+                  whole.why_not.c_str());
+    }
     std::printf(
         "prior %s: %s (%zu keyframes, %zu segments; opened in %.2f s, LSH index %.2f s%s)%s\n", name.c_str(),
         sc.prior->dir.c_str(), sc.prior->map->keyframes().size(), sc.prior->map->segments().size(),

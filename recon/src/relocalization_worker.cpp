@@ -234,6 +234,18 @@ void RelocalizationWorker::run() {
       static_cast<int>(prior_.segments().size()) - preload.segments_in_memory -
           prior_.counters().unreadable_segments,
       preload.cancelled ? " (preload stopped: the worker is stopping)" : "");
+  // The whole prior's NDT targets (relocalizer.hpp prepare_targets), when every cloud fit the budget.
+  const Relocalizer::WholePriorTargets whole = relocalizer_.prepare_targets(prior_, [this] {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return !stop_;
+  });
+  if (whole.built) {
+    HWR_LOG_INFO("reloc-worker",
+                 "prior map: NDT targets of the whole prior at %d resolutions (%lld voxels) in %.2f s",
+                 whole.levels, static_cast<long long>(whole.voxels), whole.seconds);
+  } else {
+    HWR_LOG_INFO("reloc-worker", "prior map: NDT targets gathered per attempt (%s)", whole.why_not.c_str());
+  }
   {
     std::lock_guard<std::mutex> lock(mutex_);
     busy_.store(false, std::memory_order_release);

@@ -13,7 +13,10 @@
 // apart) without a prior, while a position prior (0.5 m, or 1 m like GNSS) picks the copy it
 // points at, the original or the other one; every
 // accepted fit was compared with at least one rival; the candidate sampling keeps
-// exactly the prior keyframes within 2 d + 3 sigma of the position prior.
+// exactly the prior keyframes within 2 d + 3 sigma of the position prior. The recovery, the queries
+// from where the prior never was and the repeated bays run against both kinds of NDT target: the
+// whole prior's, built once (prepare_targets, as the robot's worker does), and points gathered about
+// each hypothesis (a prior over the point budget).
 
 #include <unistd.h>
 
@@ -368,6 +371,21 @@ Errors pose_errors(const Eigen::Isometry3d& estimate, const Eigen::Isometry3d& t
   return {d.translation().norm(), Eigen::AngleAxisd(d.linear()).angle() / kDeg};
 }
 
+// The two ways relocalize() meets the prior's points: the whole prior's NDT targets, built once
+// (prepare_targets after the preload, as RelocalizationWorker and hwr-bench reloc do), or the points
+// gathered about each hypothesis (a prior over the point budget, or whole_prior_targets off).
+enum class Targets { kGathered, kWholePrior };
+const char* targets_name(Targets t) {
+  return t == Targets::kGathered ? "gathered targets" : "whole-prior targets";
+}
+void use_targets(Targets t, PriorMap* prior, Relocalizer* reloc) {
+  if (t == Targets::kGathered) return;
+  prior->preload_clouds();
+  const Relocalizer::WholePriorTargets w = reloc->prepare_targets(*prior);
+  ASSERT_TRUE(w.built) << w.why_not;
+  EXPECT_EQ(w.levels, 4);  // coarse 2 and 1 m, fine 0.5 and 0.25 m
+}
+
 Relocalizer make_relocalizer() {
   auto r = Relocalizer::create(RelocalizerConfig{}, walk().K, kMaxFeatures);
   EXPECT_TRUE(r.ok()) << r.status().message();
@@ -443,49 +461,111 @@ TEST(Relocalizer, GivenAPositionPriorThenCandidatesAreTheKeyframesWithinTwiceThe
 // ---- recovery of a known offset on noise-free data ----
 
 TEST(Relocalizer, GivenAKnownOffsetThenItIsRecoveredExactlyWithAndWithoutPriors) {
-  auto prior = PriorMap::open(stores().full);
-  ASSERT_TRUE(prior.ok()) << prior.status().message();
-  Relocalizer reloc = make_relocalizer();
+  for (Targets targets : {Targets::kGathered, Targets::kWholePrior}) {
+    SCOPED_TRACE(targets_name(targets));
+    auto prior = PriorMap::open(stores().full);
+    ASSERT_TRUE(prior.ok()) << prior.status().message();
+    Relocalizer reloc = make_relocalizer();
+    ASSERT_NO_FATAL_FAILURE(use_targets(targets, &prior.value(), &reloc));
+    const Eigen::Isometry3d T_true = known_T_prior_world();
+    const CurrentRun run = make_current(walk().query_lab, T_true);
+    ASSERT_GT(run.local_map_world.size(), 5000u);
+
+    struct Case {
+      const char* name;
+      bool position, yaw;
+    };
+    for (const Case& c : {Case{"no priors", false, false}, Case{"position prior", true, false},
+                          Case{"yaw prior", false, true}, Case{"position + yaw priors", true, true}}) {
+      RelocalizationQuery q = make_query(run);
+      if (c.position) {
+        q.position.valid = true;
+        q.position.p_prior_m = run.T_prior_cam_true.translation() + Eigen::Vector3d(0.8, -0.5, 0.3);
+        q.position.sigma_m = 1.0;
+      }
+      if (c.yaw) {
+        q.yaw_valid = true;
+        q.yaw_prior_rad = yaw_of(T_true) + 4.0 * kDeg;
+        q.yaw_sigma_rad = 5.0 * kDeg;
+      }
+      const RelocalizationResult r = reloc.relocalize(q, &prior.value());
+      print_result(c.name, r);
+      ASSERT_TRUE(r.localized) << c.name << ": " << r.message;
+      const Errors e = pose_errors(r.T_prior_world, T_true);
+      std::printf("[ reloc    ]   error %.2f cm, %.3f deg\n", 100.0 * e.m, e.deg);
+      EXPECT_LT(e.m, 0.02) << c.name;
+      EXPECT_LT(e.deg, 0.3) << c.name;
+      EXPECT_GT(r.verify_keyframes_used, 0) << c.name;
+      if (!(c.position && c.yaw)) {
+        EXPECT_TRUE(r.margin_known) << c.name;  // a rival was evaluated: the margin is not by default
+      }
+      if (c.position) {
+        EXPECT_LT(r.counters.candidates, static_cast<int>(prior->keyframes().size())) << c.name;
+      }
+      // The whole prior's targets hold every prior point; gathered ones only those about a hypothesis.
+      if (targets == Targets::kWholePrior) {
+        EXPECT_EQ(r.counters.target_points, prior->counters().loaded_points) << c.name;
+      } else {
+        EXPECT_LT(r.counters.target_points, prior->counters().loaded_points) << c.name;
+      }
+    }
+    std::printf("[ reloc    ] prior map: %zu keyframes, %zu segments, cloud loads %llu, evictions %llu\n",
+                prior->keyframes().size(), prior->segments().size(),
+                static_cast<unsigned long long>(prior->counters().cloud_loads),
+                static_cast<unsigned long long>(prior->counters().cloud_evictions));
+  }
+}
+
+// The whole prior's targets are built only when every cloud is in memory, and serve only the prior
+// (and the clouds) they were built over; otherwise relocalize() gathers points as before.
+TEST(Relocalizer, GivenAPriorOverThePointBudgetOrAnotherPriorThenTheWholePriorTargetsAreNotUsed) {
   const Eigen::Isometry3d T_true = known_T_prior_world();
   const CurrentRun run = make_current(walk().query_lab, T_true);
-  ASSERT_GT(run.local_map_world.size(), 5000u);
-
-  struct Case {
-    const char* name;
-    bool position, yaw;
-  };
-  for (const Case& c : {Case{"no priors", false, false}, Case{"position prior", true, false},
-                        Case{"yaw prior", false, true}, Case{"position + yaw priors", true, true}}) {
-    RelocalizationQuery q = make_query(run);
-    if (c.position) {
-      q.position.valid = true;
-      q.position.p_prior_m = run.T_prior_cam_true.translation() + Eigen::Vector3d(0.8, -0.5, 0.3);
-      q.position.sigma_m = 1.0;
-    }
-    if (c.yaw) {
-      q.yaw_valid = true;
-      q.yaw_prior_rad = yaw_of(T_true) + 4.0 * kDeg;
-      q.yaw_sigma_rad = 5.0 * kDeg;
-    }
-    const RelocalizationResult r = reloc.relocalize(q, &prior.value());
-    print_result(c.name, r);
-    ASSERT_TRUE(r.localized) << c.name << ": " << r.message;
-    const Errors e = pose_errors(r.T_prior_world, T_true);
-    std::printf("[ reloc    ]   error %.2f cm, %.3f deg\n", 100.0 * e.m, e.deg);
-    EXPECT_LT(e.m, 0.02) << c.name;
-    EXPECT_LT(e.deg, 0.3) << c.name;
-    EXPECT_GT(r.verify_keyframes_used, 0) << c.name;
-    if (!(c.position && c.yaw)) {
-      EXPECT_TRUE(r.margin_known) << c.name;  // a rival was evaluated: the margin is not by default
-    }
-    if (c.position) {
-      EXPECT_LT(r.counters.candidates, static_cast<int>(prior->keyframes().size())) << c.name;
-    }
+  {
+    // A budget for 60 % of the prior's (thinned) points.
+    auto all = PriorMap::open(stores().full);
+    ASSERT_TRUE(all.ok());
+    all->preload_clouds();
+    ASSERT_TRUE(all->all_clouds_in_memory());
+    PriorMapConfig small;
+    small.max_loaded_points = all->counters().loaded_points * 6 / 10;
+    auto prior = PriorMap::open(stores().full, small);
+    ASSERT_TRUE(prior.ok()) << prior.status().message();
+    Relocalizer reloc = make_relocalizer();
+    prior->preload_clouds();
+    ASSERT_FALSE(prior->all_clouds_in_memory());
+    const Relocalizer::WholePriorTargets w = reloc.prepare_targets(*prior);
+    EXPECT_FALSE(w.built);
+    EXPECT_NE(w.why_not.find("memory"), std::string::npos) << w.why_not;
+    const RelocalizationResult r = reloc.relocalize(make_query(run), &prior.value());
+    print_result("prior over the point budget", r);
+    ASSERT_TRUE(r.localized) << r.message;  // the gathered path, with clouds evicted and read again
+    EXPECT_LE(r.counters.target_points, small.max_loaded_points);
   }
-  std::printf("[ reloc    ] prior map: %zu keyframes, %zu segments, cloud loads %llu, evictions %llu\n",
-              prior->keyframes().size(), prior->segments().size(),
-              static_cast<unsigned long long>(prior->counters().cloud_loads),
-              static_cast<unsigned long long>(prior->counters().cloud_evictions));
+  {
+    RelocalizerConfig off;
+    off.whole_prior_targets = false;
+    auto reloc = Relocalizer::create(off, walk().K, kMaxFeatures);
+    ASSERT_TRUE(reloc.ok());
+    auto prior = PriorMap::open(stores().full);
+    ASSERT_TRUE(prior.ok());
+    prior->preload_clouds();
+    EXPECT_FALSE(reloc->prepare_targets(*prior).built);
+  }
+  {
+    // Built over one opening of the store, then given another: the other's points are gathered.
+    auto built_over = PriorMap::open(stores().full);
+    auto other = PriorMap::open(stores().full);
+    ASSERT_TRUE(built_over.ok() && other.ok());
+    Relocalizer reloc = make_relocalizer();
+    ASSERT_NO_FATAL_FAILURE(use_targets(Targets::kWholePrior, &built_over.value(), &reloc));
+    const uint64_t generation = built_over->cloud_generation();
+    const RelocalizationResult r = reloc.relocalize(make_query(run), &other.value());
+    ASSERT_TRUE(r.localized) << r.message;
+    EXPECT_LT(r.counters.target_points, built_over->counters().loaded_points);
+    EXPECT_GT(other->counters().cloud_loads, 0u);  // its clouds were read for the gathers
+    EXPECT_EQ(built_over->cloud_generation(), generation);
+  }
 }
 
 // ---- step d': ORB refinement of a fit NDT leaves weak ----
@@ -560,6 +640,10 @@ TEST(Relocalizer, GivenAFineFitNdtCallsDegenerateThenTheOrbRefinementPinsItAndFa
 TEST(Relocalizer, GivenAConvergedFitThenTheOrbPolishMovesThePoseOrRejectsAFitItContradicts) {
   auto prior = PriorMap::open(stores().full);
   ASSERT_TRUE(prior.ok()) << prior.status().message();
+  // Every relocalizer below meets the clouds in memory. A query that reads them lists the segments by
+  // their estimated boxes, later ones by their clouds' boxes: another order of the gathered points,
+  // another stride through them, NDT fits ~2 mm apart.
+  prior->preload_clouds();
   const Eigen::Isometry3d T_true = known_T_prior_world();
   const CurrentRun run = make_current(walk().query_lab, T_true);
   auto make = [&](bool polish, double max_move_m,
@@ -671,37 +755,46 @@ TEST(Relocalizer, GivenTheLabRevisitRunThenItsWorldFrameIsFoundInThePriorsFrame)
 // ---- never a wrong pose ----
 
 TEST(Relocalizer, GivenAQueryFromWhereThePriorNeverWasThenNotLocalized) {
-  auto partial = PriorMap::open(stores().partial);
-  ASSERT_TRUE(partial.ok()) << partial.status().message();
-  Relocalizer reloc = make_relocalizer();
-  const Eigen::Isometry3d T_true = known_T_prior_world();
-  {
-    const CurrentRun run = make_current(walk().query_north, T_true);
-    const RelocalizationResult r = reloc.relocalize(make_query(run), &partial.value());
-    print_result("bench the prior never faced", r);
-    if (r.localized) {
-      const Errors e = pose_errors(r.T_prior_world, T_true);
-      std::printf("[ reloc    ]   error %.2f cm, %.3f deg\n", 100.0 * e.m, e.deg);
+  for (Targets targets : {Targets::kGathered, Targets::kWholePrior}) {
+    SCOPED_TRACE(targets_name(targets));
+    auto partial = PriorMap::open(stores().partial);
+    ASSERT_TRUE(partial.ok()) << partial.status().message();
+    Relocalizer reloc = make_relocalizer();
+    ASSERT_NO_FATAL_FAILURE(use_targets(targets, &partial.value(), &reloc));
+    const Eigen::Isometry3d T_true = known_T_prior_world();
+    {
+      const CurrentRun run = make_current(walk().query_north, T_true);
+      const RelocalizationResult r = reloc.relocalize(make_query(run), &partial.value());
+      print_result("bench the prior never faced", r);
+      if (r.localized) {
+        const Errors e = pose_errors(r.T_prior_world, T_true);
+        std::printf("[ reloc    ]   error %.2f cm, %.3f deg\n", 100.0 * e.m, e.deg);
+      }
+      EXPECT_FALSE(r.localized) << r.message;
+      EXPECT_NE(r.reason, RelocalizationReason::kLocalized);
     }
-    EXPECT_FALSE(r.localized) << r.message;
-    EXPECT_NE(r.reason, RelocalizationReason::kLocalized);
-  }
-  {
-    auto full = PriorMap::open(stores().full);
-    ASSERT_TRUE(full.ok());
-    const CurrentRun run = make_current(walk().query_outdoor, T_true);
-    const RelocalizationResult r = reloc.relocalize(make_query(run), &full.value());
-    print_result("outdoor vs lab prior", r);
-    EXPECT_FALSE(r.localized) << r.message;
+    {
+      auto full = PriorMap::open(stores().full);
+      ASSERT_TRUE(full.ok());
+      Relocalizer reloc_full = make_relocalizer();
+      ASSERT_NO_FATAL_FAILURE(use_targets(targets, &full.value(), &reloc_full));
+      const CurrentRun run = make_current(walk().query_outdoor, T_true);
+      const RelocalizationResult r = reloc_full.relocalize(make_query(run), &full.value());
+      print_result("outdoor vs lab prior", r);
+      EXPECT_FALSE(r.localized) << r.message;
+    }
   }
 }
 
 // Two bays: without a prior neither may be returned (kAmbiguous, after a rival was scored).
-void expect_ambiguous(const char* what, const std::string& store, double shift_m) {
+void expect_ambiguous(const char* what, const std::string& store, double shift_m,
+                      Targets targets = Targets::kGathered) {
+  SCOPED_TRACE(targets_name(targets));
   auto prior = PriorMap::open(store);
   ASSERT_TRUE(prior.ok()) << prior.status().message();
   ASSERT_EQ(prior->segments().size(), 2u * (kRepeatedLast - kRepeatedFirst + 1));
   Relocalizer reloc = make_relocalizer();
+  ASSERT_NO_FATAL_FAILURE(use_targets(targets, &prior.value(), &reloc));
   const Eigen::Isometry3d T_true = known_T_prior_world();
   const Eigen::Isometry3d T_copy = Eigen::Translation3d(shift_m, 0.0, 0.0) * T_true;
   const CurrentRun run = make_current(walk().query_lab, T_true);
@@ -738,6 +831,7 @@ TEST(Relocalizer, GivenARepetitiveRegionThenAmbiguousWithoutPriorsAndTheRightCop
     EXPECT_LT(e.deg, 0.3);
   }
   expect_ambiguous("repeated bays, no priors", stores().repeated, kRepeatShift_m);
+  expect_ambiguous("repeated bays, no priors", stores().repeated, kRepeatShift_m, Targets::kWholePrior);
 
   auto prior = PriorMap::open(stores().repeated);
   ASSERT_TRUE(prior.ok()) << prior.status().message();
@@ -777,9 +871,11 @@ TEST(Relocalizer, GivenARepetitiveRegionThenAmbiguousWithoutPriorsAndTheRightCop
 // votes would all go to one of them) and copies closer than verify_radius_m (the rival scan skips
 // keyframes that near the fitted camera) are ambiguous too.
 TEST(Relocalizer, GivenBitIdenticalOrNearbyCopiesThenAmbiguousWithoutPriors) {
-  expect_ambiguous("bit-identical bays", stores().repeated_identical, kRepeatShift_m);
-  ASSERT_LT(kNearShift_m, RelocalizerConfig{}.verify_radius_m);
-  expect_ambiguous("bays 2.5 m apart", stores().repeated_near, kNearShift_m);
+  for (Targets targets : {Targets::kGathered, Targets::kWholePrior}) {
+    expect_ambiguous("bit-identical bays", stores().repeated_identical, kRepeatShift_m, targets);
+    ASSERT_LT(kNearShift_m, RelocalizerConfig{}.verify_radius_m);
+    expect_ambiguous("bays 2.5 m apart", stores().repeated_near, kNearShift_m, targets);
+  }
 }
 
 // Step e's ORB rivals: a weak fit (step d') rests on appearance along the direction the geometry leaves

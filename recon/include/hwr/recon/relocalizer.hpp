@@ -15,11 +15,14 @@
 //     without one, every prior keyframe.
 //  b. Appearance: every prior keyframe's ORB descriptors are in one LSH index (bit sampling,
 //     vote_lsh: tables of key_bits bits drawn with a fixed seed, built once per prior map by a
-//     counting sort); each current descriptor votes once for every prior keyframe holding a
-//     descriptor within vote_tie_bits of the nearest one found (near-ties: the copies of a repeated
-//     place all get the vote; nearest-only votes gave the sim's copy, 3 bits further, 4 of the
-//     original's 57). Candidates are ranked by votes and the top_k (no two neighbouring keyframes)
-//     go on, each matched with the current keyframe (estimation::ExactMatcher, ratio test).
+//     counting sort); each current descriptor votes once for every candidate keyframe holding a
+//     descriptor within vote_tie_bits of the nearest candidate descriptor found (near-ties: the copies
+//     of a repeated place all get the vote; nearest-only votes gave the sim's copy, 3 bits further, 4
+//     of the original's 57; with a position prior the other keyframes' descriptors are not read: they
+//     are other places, and skipping them cut the outdoor vote from ~15 to ~4 ms). Candidates are
+//     ranked by votes and the top_k (no two neighbouring keyframes) go on, each matched with the
+//     current keyframe (estimation::ExactMatcher, ratio test; an attempt matches a keyframe once and
+//     keeps the matches for its later steps).
 //  c. Geometry: per candidate, RANSAC (estimation::PoseRansac) over the candidate's keypoints with
 //     depth (moved to the prior frame) and the current keypoints gives T_prior_cam, hence
 //     T_prior_world = T_prior_cam * T_world_cam^-1. With a yaw prior, hypotheses whose relative yaw
@@ -94,14 +97,19 @@
 // Scores: NDT's score of eq. 6.9 summed over the (same, subsampled) source cloud, divided by its
 // point count, so hypotheses are compared on the same cloud at the same resolution.
 //
-// Memory: create() sizes the current-keyframe matcher, RANSAC, the match and correspondence
-// buffers, the source buffer (max_source_points), both NDT aligners (one target per level: coarse
-// 2 x 65536 voxels, fine 2 x 262144, ~130 MB; a target gathered once serves every hypothesis near
-// it) and the structure scores' NDT target (at most 65536 voxels, ~13 MB), and step d''s pose-only refiner
-// and keypoint marks (max_features). relocalize() runs off the control loop and allocates: the prior LSH
-// index (prepare(), once per prior map: per feature a copy of its descriptor (32 B), its keyframe and a query
-// mark (4 B each) and 4 B per table, plus 4 (2^key_bits + 1) B of offsets per table; with 4 x 16-bit tables
-// ~9.9 MB for the lab's 158k features, the build's 4 B per feature of key scratch freed), the current
+// Memory: create() sizes the current-keyframe matcher and the attempt's match cache (48 keyframes x
+// max_features matches, 12 B each: 460 kB at 800), RANSAC, the correspondence buffers, the source buffer
+// (max_source_points), both NDT aligners (one target per level: coarse 2 x 65536 voxels, fine 2 x 262144,
+// ~130 MB, for gathered targets; a target gathered once serves every hypothesis near it) and the structure
+// scores' NDT targets (two, one per resolution, at most 65536 voxels each, ~13 MB each), and step d''s
+// pose-only refiner and keypoint marks (max_features). relocalize() runs off the control loop and
+// allocates: the prior LSH index (prepare(), once per prior map: per feature a copy of its descriptor
+// (32 B), its keyframe and a query mark (4 B each) and 8 B per table (its id and keyframe in bucket
+// order), plus 4 (2^key_bits + 1) B of offsets per table; with 4 x 16-bit tables ~11 MB for the lab's 158k
+// features, the build's 4 B per feature of key scratch freed), the whole prior's NDT targets
+// (prepare_targets(), once per prior map: ~200 B per occupied voxel and resolution, at most twice the
+// voxels used; the sim outdoor prior's 3.6M thinned points fill 89k voxels over 2, 1, 0.5 and 0.25 m,
+// ~19-38 MB), the current
 // keyframe's LSH tables (FLANN allocates them on every build), the per-prior-keyframe vote and position
 // tables (first call), the prior target cloud (grows to the largest points_near answer, then reused), the
 // structure split (a voxel hash over the local map, and the structure / fine-source buffers, reused), the
@@ -109,6 +117,7 @@
 
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -191,6 +200,8 @@ struct RelocalizerConfig {
     // ground plane dominates the Hessian (outdoors the smallest/largest eigenvalue ratio was
     // 0.0004-0.0097, median 0.0018, at fits the fine stage then confirmed).
     c.degenerate_eigenvalue_ratio = 0.0;
+    c.translation_epsilon_m = 0.002;
+    c.rotation_epsilon_rad = 0.0005;
     c.max_source_points = 20'000;
     c.max_target_points = 2'000'000;
     // At 1-2 m a target ball of radius r holds at most ~4.2 r^3 voxels: 65536 covers r <= 25 m
@@ -252,9 +263,12 @@ struct RelocalizerConfig {
   double orb_refine_max_score_loss = 0.1;
   // The same refinement of the converged fine fit step e accepted (only with orb_refine and
   // min_structure_points), with the same gates but a tighter move; the polished pose must pass step
-  // e's pose-dependent tests again (priors' gates, the ORB seed's max_ndt_correction, the ORB check,
-  // the score margin against the same rivals), else NDT's pose is returned. It changes the pose,
-  // never whether it is accepted. Measured (hwr-bench reloc --scenes lab --starts 50 --seed 1,
+  // e's pose-dependent tests again (priors' gates, the ORB seed's max_ndt_correction, the ORB check)
+  // and keep at least (1 - orb_refine_max_score_loss) of the NDT fit's structure score at both of the
+  // margin's levels (the margin itself is the NDT fit's: NDT's pose maximises that score, so taken
+  // again at the polished pose it is lower by construction), else NDT's pose is returned. It changes
+  // the pose, never whether it is accepted (but for orb_polish_rejects_beyond_move). Measured (hwr-bench
+  // reloc --scenes lab --starts 50 --seed 1,
   // --orb-refine weak vs all): lab 90 % -> 100 % within 3 cm / 0.3 deg, error (b) max
   // 4.4 cm / 0.42 deg -> 0.42 cm / 0.08 deg.
   bool orb_refine_converged = true;
@@ -275,13 +289,23 @@ struct RelocalizerConfig {
   int max_source_points = 8'000;    // the local cloud is subsampled (stride) to at most this
   int max_target_points = 150'000;  // the prior target is subsampled (stride) to at most this
   // The coarse stage (1-2 m voxels, seeds only) takes every k-th source point, at most
-  // coarse_source_points, and every k-th target point, at most coarse_target_points: at those voxel
-  // sides more points change the Gaussians little and cost linearly (hwr-bench reloc --verbose
-  // prints the NDT time per attempt).
-  int coarse_source_points = 3'000;
+  // coarse_source_points, and every k-th target point, at most coarse_target_points (gathered
+  // targets only): at those voxel sides more points change the Gaussians little and cost linearly
+  // (hwr-bench reloc --verbose prints the NDT time per attempt). With the whole prior's targets
+  // the coarse Newton iterations were the stage's cost: 3000 -> 1500 source points took the outdoor
+  // both-priors row's coarse stage from 34 to 17 ms per successful attempt (median, 50 starts) with the
+  // same successes and errors (docs/relocalization.md).
+  int coarse_source_points = 1'500;
   int coarse_target_points = 100'000;
   double target_margin_m = 2.0;  // beyond the local cloud's extent
-  int keep_best = 3;             // paper: "three high-resolution poses"
+  // NDT targets of the whole prior (prepare_targets): when every prior cloud is in memory, each
+  // resolution's voxel Gaussians are built once over all of it, and no attempt gathers points or
+  // builds a target again (the prior does not change while the robot relocalizes). Otherwise, or
+  // when false, each hypothesis gathers the prior points about it (target_margin_m, max_target_points,
+  // coarse_target_points) and builds its targets (hwr-bench reloc, both priors outdoors: building them
+  // was 27 % of relocalize() and gathering the points 10 %).
+  bool whole_prior_targets = true;
+  int keep_best = 3;  // paper: "three high-resolution poses"
   // e. acceptance
   double min_inlier_ratio = 0.7;
   double min_score_margin = 0.2;  // (best - competitor) / best, scores per source point
@@ -414,6 +438,11 @@ struct RelocalizationResult {
   // NDT, acceptance); index_s: building the prior's LSH index (first call with a prior map, part of
   // appearance_s).
   double appearance_s = 0, geometry_s = 0, ndt_s = 0, index_s = 0;
+  // ndt_s split by step (each 0 when the attempt ended before it): the coarse NDT of every
+  // hypothesis, the fine NDT of the keep_best with step d', step e's checks up to the ORB
+  // verification, its rivals (180 deg turn, second vote cluster, ORB rivals), the structure margin,
+  // and the polish of an accepted converged fit.
+  double coarse_s = 0, fine_s = 0, verify_s = 0, rivals_s = 0, margin_s = 0, polish_s = 0;
 };
 
 class Relocalizer {
@@ -432,6 +461,22 @@ class Relocalizer {
   // it after PriorMap::open keeps that time out of the first attempt (10-30 ms for the lab's 158k
   // prior features; FLANN's index took 0.2-0.4 s). Allocates (see Memory above).
   void prepare(const PriorMap& prior);
+  // Builds the whole prior's NDT targets (RelocalizerConfig::whole_prior_targets) at every resolution
+  // steps d and e use, over the clouds in memory, when all of them are (PriorMap::all_clouds_in_memory:
+  // call it after PriorMap::preload_clouds); else, or when the config says no, leaves the per-query
+  // targets in use. They serve relocalize() while the prior's clouds stay as they were
+  // (PriorMap::cloud_generation). Allocates ~200 bytes per occupied voxel and level (outdoor sim prior,
+  // 3.6M points: see docs/relocalization.md). Errors: none but allocation; the result says what was built.
+  struct WholePriorTargets {
+    bool built = false;
+    std::string why_not;  // when not built
+    int64_t points = 0;   // prior points voxelised
+    int levels = 0;       // resolutions built
+    int64_t voxels = 0;   // occupied voxels, all levels
+    double seconds = 0;
+  };
+  // keep_going (optional) is asked before each resolution: false stops there, nothing built.
+  WholePriorTargets prepare_targets(const PriorMap& prior, const std::function<bool()>& keep_going = {});
 
   const RelocalizerConfig& config() const;
   Relocalizer(Relocalizer&&) noexcept;
