@@ -53,4 +53,8 @@ void hamming_distances_at(const uint8_t* query, const uint8_t* base, const uint3
 
 const char* hamming_kernel_name() { return kernels().name; }
 
+void detail::hamming_distances_portable(const uint8_t* query, const uint8_t* train, int n, int* out) {
+  portable_rows(query, train, n, out);
+}
+
 }  // namespace hwr::estimation

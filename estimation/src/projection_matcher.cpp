@@ -2,11 +2,16 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <type_traits>
 
 #include "hwr/estimation/descriptor.hpp"
 #include "hwr/estimation/hamming_kernel.hpp"
 
 namespace hwr::estimation {
+
+// The candidates (int) are read by hamming_distances_at as their unsigned variant ([basic.lval]).
+static_assert(std::is_same_v<std::make_unsigned_t<int>, uint32_t>, "int's unsigned variant is uint32_t");
 
 ProjectionMatcher::ProjectionMatcher(int max_points, int max_features)
     : max_points_(std::max(max_points, 0)),

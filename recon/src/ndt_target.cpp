@@ -96,6 +96,7 @@ void NdtTarget::Impl::clear() {
   voxels = 0;
   gaussian_count = 0;
   skipped_points = 0;
+  resolution_m = 0;  // unbuilt until a build succeeds (NdtAligner::align_prebuilt refuses it)
 }
 
 namespace {

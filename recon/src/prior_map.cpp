@@ -180,7 +180,10 @@ core::Status PriorMap::load_cloud(size_t index) {
   if (config_.cloud_voxel_m > 0) {
     // Thinned in the segment frame, where the map's voxels were (PriorMapConfig::cloud_voxel_m).
     auto thinned = thin_cloud(&cloud, config_.cloud_voxel_m);
-    if (!thinned.ok()) return thinned.status();
+    if (!thinned.ok()) {
+      std::vector<CloudPoint>().swap(cloud);  // never left in memory unthinned, in the segment frame
+      return thinned.status();
+    }
     counters_.points_read += thinned->points_in;
   } else {
     counters_.points_read += static_cast<int64_t>(cloud.size());

@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <cstring>
 #include <limits>
+#include <new>
 #include <numeric>
 #include <random>
 
@@ -188,7 +189,6 @@ class VoteIndex {
   // Adds the current keyframe's votes to votes[k] for the keyframes with is_candidate[k].
   void vote(const estimation::FrameFeatures& query, int tie_bits, int max_distance,
             const std::vector<uint8_t>& is_candidate, std::vector<int>* votes) {
-    is_candidate_ = &is_candidate;
     for (int qi = 0; qi < query.size(); ++qi) {
       const uint8_t* q = query.descriptor(qi);
       if (++stamp_ == 0) {  // wrapped: forget every mark
@@ -200,12 +200,14 @@ class VoteIndex {
       int nearest = std::numeric_limits<int>::max();
       for (int t = 0; t < tables_; ++t) {
         const uint32_t k = key(t, q);
-        probe(t, k, q, &nearest);
+        probe(t, k, q, is_candidate, &nearest);
         if (multi_probe_ >= 1) {
           for (int a = 0; a < key_bits_; ++a) {
-            probe(t, k ^ (1u << a), q, &nearest);
+            probe(t, k ^ (1u << a), q, is_candidate, &nearest);
             if (multi_probe_ >= 2) {
-              for (int b = a + 1; b < key_bits_; ++b) probe(t, k ^ (1u << a) ^ (1u << b), q, &nearest);
+              for (int b = a + 1; b < key_bits_; ++b) {
+                probe(t, k ^ (1u << a) ^ (1u << b), q, is_candidate, &nearest);
+              }
             }
           }
         }
@@ -229,7 +231,7 @@ class VoteIndex {
     for (int j = 0; j < key_bits_; ++j) k |= static_cast<uint32_t>((d[b[j] >> 3] >> (b[j] & 7)) & 1u) << j;
     return k;
   }
-  void probe(int t, uint32_t k, const uint8_t* q, int* nearest) {
+  void probe(int t, uint32_t k, const uint8_t* q, const std::vector<uint8_t>& is_candidate, int* nearest) {
     const size_t buckets = size_t{1} << key_bits_;
     const uint32_t* off = offsets_.data() + static_cast<size_t>(t) * (buckets + 1);
     const uint32_t* ids = ids_.data() + static_cast<size_t>(t) * n_;  // data(): n_ may be 0
@@ -238,7 +240,7 @@ class VoteIndex {
     for (uint32_t i = off[k]; i < off[k + 1]; ++i) {
       // Only the candidates' descriptors (all of them without a position prior): read in bucket order,
       // so that the others cost no random access into the descriptors (tens of MB).
-      if (!(*is_candidate_)[owners[i]]) continue;
+      if (!is_candidate[owners[i]]) continue;
       const uint32_t id = ids[i];
       if (seen_[id] == stamp_) continue;
       seen_[id] = stamp_;
@@ -253,14 +255,13 @@ class VoteIndex {
   }
   int tables_ = 0, key_bits_ = 0, multi_probe_ = 0;
   size_t n_ = 0;
-  std::vector<int> bits_;                               // tables x key_bits descriptor bit indices
-  std::vector<uint8_t> desc_;                           // n x 32
-  std::vector<int> owner_;                              // keyframe of each descriptor
-  std::vector<uint32_t> offsets_;                       // tables x (2^key_bits + 1)
-  std::vector<uint32_t> ids_;                           // tables x n, descriptor indices sorted by bucket
-  std::vector<uint32_t> bucket_owner_;                  // tables x n, the keyframe of each ids_ entry
-  const std::vector<uint8_t>* is_candidate_ = nullptr;  // vote()'s
-  std::vector<uint32_t> keys_;                          // build scratch
+  std::vector<int> bits_;                // tables x key_bits descriptor bit indices
+  std::vector<uint8_t> desc_;            // n x 32
+  std::vector<int> owner_;               // keyframe of each descriptor
+  std::vector<uint32_t> offsets_;        // tables x (2^key_bits + 1)
+  std::vector<uint32_t> ids_;            // tables x n, descriptor indices sorted by bucket
+  std::vector<uint32_t> bucket_owner_;   // tables x n, the keyframe of each ids_ entry
+  std::vector<uint32_t> keys_;           // build scratch
   std::vector<uint32_t> seen_;           // per descriptor: the stamp of the last query that scored it
   std::vector<uint32_t> keyframe_seen_;  // per keyframe: the stamp of the last query that voted for it
   uint32_t stamp_ = 0;
@@ -828,86 +829,83 @@ Relocalizer::WholePriorTargets Relocalizer::prepare_targets(const PriorMap& prio
   const auto t0 = std::chrono::steady_clock::now();
   WholePriorTargets out;
   m.whole = Impl::WholePrior{};
-  if (!m.config.whole_prior_targets) {
-    out.why_not = "RelocalizerConfig::whole_prior_targets is off";
+  auto not_built = [&](std::string why) {
+    m.whole = Impl::WholePrior{};  // frees what was built
+    out.built = false;
+    out.levels = 0;
+    out.voxels = 0;
+    out.why_not = std::move(why);
     return out;
-  }
+  };
+  if (!m.config.whole_prior_targets) return not_built("RelocalizerConfig::whole_prior_targets is off");
   if (!prior.all_clouds_in_memory()) {
-    out.why_not = "not every prior cloud is in memory (over the point budget, or not preloaded)";
-    return out;
+    return not_built("not every prior cloud is in memory (over the point budget, or not preloaded)");
   }
   std::vector<PointsView> views;
   for (size_t i = 0; i < prior.segments().size(); ++i) {
     const std::vector<CloudPoint>& c = prior.cloud(i);
-    if (c.empty()) continue;
+    if (!prior.segments()[i].loaded || c.empty()) continue;
     views.push_back(PointsView{&c[0].x_m, static_cast<int>(c.size()), 4});
     out.points += static_cast<int64_t>(c.size());
   }
-  if (out.points == 0) {
-    out.why_not = "the prior holds no cloud points";
-    return out;
-  }
-  // Every resolution steps d and e use, each built with its stage's target parameters (outlier ratio,
-  // points per voxel, covariance floor); a resolution in both stages takes the fine stage's.
-  std::vector<std::pair<double, const NdtConfig*>> levels;
+  if (out.points == 0) return not_built("the prior holds no cloud points");
+  // Every resolution steps d and e use (create() made both stages agree on the target parameters:
+  // outlier ratio, points per voxel, covariance floor).
+  std::vector<double> resolutions;
   for (const NdtConfig* c : {&m.config.ndt_coarse, &m.config.ndt_fine}) {
     for (double r : c->resolutions_m) {
       if (r == 0.0) break;
-      bool known = false;
-      for (auto& [lr, lc] : levels) {
-        if (lr == r) {
-          lc = c;
-          known = true;
-        }
-      }
-      if (!known) levels.emplace_back(r, c);
+      if (std::find(resolutions.begin(), resolutions.end(), r) == resolutions.end()) resolutions.push_back(r);
     }
   }
-  for (const auto& [resolution_m, stage] : levels) {
-    if (keep_going && !keep_going()) {
-      m.whole = Impl::WholePrior{};
-      out.why_not = "stopped before it was built";
-      return out;
+  int64_t capacity_total = 0;  // voxels allocated over all levels (max_whole_prior_voxels bounds it)
+  try {
+    for (double resolution_m : resolutions) {
+      // Capacity: a surface thinned to cloud_voxel_m puts at least ~(r / voxel)^2 points in a voxel of
+      // side r (the sim priors: ~50 at 0.25 m, their 2 cm map voxels hold several noisy layers); start
+      // at an eighth of the voxels that would give and double until the build fits (at most twice the
+      // voxels needed, ~200-240 bytes each).
+      NdtConfig c = m.config.ndt_fine;
+      c.max_target_points = static_cast<int>(std::min<int64_t>(out.points, std::numeric_limits<int>::max()));
+      const double voxel_m = std::max(prior.config().cloud_voxel_m, 0.01);
+      const double estimate =
+          static_cast<double>(out.points) * (voxel_m / resolution_m) * (voxel_m / resolution_m) / 8.0;
+      int64_t capacity = std::clamp<int64_t>(static_cast<int64_t>(estimate),
+                                             std::min<int64_t>(1024, out.points), out.points);
+      for (;;) {
+        if (keep_going && !keep_going()) return not_built("stopped before it was built");
+        capacity = std::min<int64_t>(capacity, 1 << 28);
+        if (capacity_total + capacity > m.config.max_whole_prior_voxels) {
+          return not_built("more than max_whole_prior_voxels (" +
+                           std::to_string(m.config.max_whole_prior_voxels) + ") would be needed at " +
+                           std::to_string(resolution_m) + " m");
+        }
+        c.max_target_voxels = static_cast<int>(capacity);
+        auto target = NdtTarget::create(c);
+        if (!target.ok()) return not_built("NDT target: " + target.status().message());
+        const core::Status st = target->build(views.data(), static_cast<int>(views.size()), resolution_m);
+        if (st.ok()) {
+          capacity_total += capacity;
+          out.voxels += target->occupied_voxels();
+          m.whole.resolutions_m.push_back(resolution_m);
+          m.whole.targets.push_back(std::move(target).value());
+          break;
+        }
+        if (st.code() != core::ErrorCode::kOutOfRange || capacity >= out.points) {
+          return not_built("NDT target at " + std::to_string(resolution_m) + " m: " + st.message());
+        }
+        capacity = std::min<int64_t>(2 * capacity, out.points);
+      }
     }
-    // Capacity: a surface thinned to cloud_voxel_m puts at least ~(r / voxel)^2 points in a voxel of
-    // side r (the sim priors: ~50 at 0.25 m, their 2 cm map voxels hold several noisy layers); start at
-    // an eighth of the voxels that would give and double until the build fits (at most twice the memory
-    // needed, ~200 bytes per voxel).
-    NdtConfig c = *stage;
-    c.max_target_points = static_cast<int>(std::min<int64_t>(out.points, std::numeric_limits<int>::max()));
-    const double voxel_m = std::max(prior.config().cloud_voxel_m, 0.01);
-    int64_t capacity =
-        std::clamp<int64_t>(static_cast<int64_t>(static_cast<double>(out.points) * (voxel_m / resolution_m) *
-                                                 (voxel_m / resolution_m) / 8.0),
-                            1024, out.points);
-    for (;;) {
-      c.max_target_voxels = static_cast<int>(std::min<int64_t>(capacity, 1 << 28));
-      auto target = NdtTarget::create(c);
-      if (!target.ok()) {
-        m.whole = Impl::WholePrior{};
-        out.why_not = "NDT target: " + target.status().message();
-        return out;
-      }
-      const core::Status st = target->build(views.data(), static_cast<int>(views.size()), resolution_m);
-      if (st.ok()) {
-        out.voxels += target->occupied_voxels();
-        m.whole.resolutions_m.push_back(resolution_m);
-        m.whole.targets.push_back(std::move(target).value());
-        break;
-      }
-      if (st.code() != core::ErrorCode::kOutOfRange || capacity >= out.points) {
-        m.whole = Impl::WholePrior{};
-        out.why_not = "NDT target at " + std::to_string(resolution_m) + " m: " + st.message();
-        return out;
-      }
-      capacity = std::min<int64_t>(2 * capacity, out.points);
-    }
+  } catch (const std::bad_alloc&) {
+    return not_built("out of memory building them");
   }
   m.whole.prior_id = prior.instance_id();
   m.whole.cloud_generation = prior.cloud_generation();
   m.whole.points = out.points;
   out.built = true;
   out.levels = static_cast<int>(m.whole.targets.size());
+  out.capacity_voxels = capacity_total;
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return out;
 }
@@ -1017,6 +1015,15 @@ core::Expected<Relocalizer> Relocalizer::create(const RelocalizerConfig& c, cons
         "relocalizer: min_structure_points must be >= 1, min_attempt_structure_points >= 0, "
         "structure_voxel_m > 0 and structure_min_normal_z "
         "in [0, 1]");
+  }
+  if (c.whole_prior_targets && (c.ndt_coarse.outlier_ratio != c.ndt_fine.outlier_ratio ||
+                                c.ndt_coarse.min_points_per_voxel != c.ndt_fine.min_points_per_voxel ||
+                                c.ndt_coarse.min_eigenvalue_ratio != c.ndt_fine.min_eigenvalue_ratio ||
+                                c.max_whole_prior_voxels < 1)) {
+    // One target per resolution serves both stages and the structure scores (prepare_targets).
+    return core::InvalidArgument(
+        "relocalizer: with whole_prior_targets, ndt_coarse and ndt_fine must agree on outlier_ratio, "
+        "min_points_per_voxel and min_eigenvalue_ratio, and max_whole_prior_voxels must be >= 1");
   }
   // The structure scores' targets (one per resolution): a ball of the local map's extent +
   // target_margin_m at 0.25-1 m voxels holds a few thousand voxels; 65536 keeps each at ~13 MB instead
@@ -1774,10 +1781,8 @@ RelocalizationResult Relocalizer::relocalize(const RelocalizationQuery& q, Prior
   double coarse_margin =
       best->coarse_score > 0 ? (best->coarse_score - coarse_rival) / best->coarse_score : -1.0;
   const char* margin_over = "all points";
-  // The margin's levels, the fit's structure scores there (kept for the polish below), and which rival was
-  // closest.
+  // The margin's levels, and which rival was closest at each.
   double best_resolution[2] = {0, 0};
-  double structure_best[2] = {0, 0};  // the fit's own structure scores at those levels
   size_t closest_rival[2] = {m.rival_poses.size(), m.rival_poses.size()};
   if (structure_margin) {
     // Over the structure points, at the fine and the coarse finest resolutions, every rival at its
@@ -1812,7 +1817,6 @@ RelocalizationResult Relocalizer::relocalize(const RelocalizationQuery& q, Prior
           closest_rival[level] = ri;
         }
       }
-      structure_best[level] = s_best;
       if (std::isfinite(s_best) && s_best > 0) margins[level] = (s_best - s_rival) / s_best;
     }
     fine_margin = margins[0];
@@ -1844,9 +1848,9 @@ RelocalizationResult Relocalizer::relocalize(const RelocalizationQuery& q, Prior
   }
   // Accepted. A converged fit is polished now (orb_refine_converged): the verdict above was reached on
   // NDT's pose; the polished pose replaces it only when it passes the same pose-dependent tests (the
-  // priors' gates, the ORB seed's max_ndt_correction, the ORB check, the score margin against the
-  // same rivals), moved little and the geometry agrees. The inlier ratio stays NDT's (a move of at
-  // most orb_refine_converged_max_move). Otherwise NDT's pose is returned.
+  // priors' gates, the ORB seed's max_ndt_correction, the ORB check; the margin stays the verdict's,
+  // below), moved little and the geometry agrees. The inlier ratio stays NDT's (a move of at most
+  // orb_refine_converged_max_move). Otherwise NDT's pose is returned.
   stage(&res.polish_s);
   std::string not_polished;  // why the polish was refused (the message says so)
   if (cfg.orb_refine && cfg.orb_refine_converged && !best->orb_refined && structure_margin) {
@@ -1857,22 +1861,14 @@ RelocalizationResult Relocalizer::relocalize(const RelocalizationQuery& q, Prior
       const Eigen::Isometry3d& P = o.T_prior_world;
       int verify_keyframes = 0;
       const int verified = m.verify(P, q, *prior, m.excluded_keyframes, &verify_keyframes);
-      // The verdict's uniqueness (the margin over the rivals, at NDT's pose) carries over to a pose
-      // within the polish's move that the structure scores about as well, at both of the margin's
-      // levels (refine_by_orb checked the fine one): NDT's pose maximises its own cost, so the margin
-      // taken again at the polished pose is lower by construction, and a fixed threshold there refused
-      // polishes of fits NDT had put 4-7 cm off (hwr-bench reloc, outdoor f330 and f4547: margins 0.21
-      // at NDT's pose, 0.18-0.20 at the polished one, which was 0.07-0.15 cm from the truth).
-      double score_ratio = std::numeric_limits<double>::infinity();
-      core::Status st;
-      for (int level = 0; level < 2; ++level) {
-        const double s_p = m.structure_score(prior, P, best_resolution[level], &res.counters, &st);
-        if (!st.ok() || !std::isfinite(s_p) || !(structure_best[level] > 0)) {
-          score_ratio = -1;
-          break;
-        }
-        score_ratio = std::min(score_ratio, s_p / structure_best[level]);
-      }
+      // The margin is not taken again at the polished pose: NDT's pose maximises the structure score,
+      // so the margin there is lower by construction, and a fixed threshold refused polishes of fits
+      // NDT had put 4-7 cm off (hwr-bench reloc, outdoor f330 and f4547: margins 0.21 at NDT's pose,
+      // 0.18-0.20 at the polished one, which was 0.07-0.15 cm from the truth). The verdict's uniqueness
+      // holds for the polished pose: it lies within the polish's move (10 cm / 1 deg) of NDT's, nearer
+      // than any rival (distinct_m, distinct_rad), and refine_by_orb found the geometry agreeing with it
+      // (structure and fine-source scores within orb_refine_max_score_loss). Its accuracy rests on the
+      // ORB fit's gates and on orb_polish_rejects_beyond_move.
       const PoseDistance seed = pose_distance(best->T_seed, P, m.centroid_world);
       if (!gates_ok(P)) {
         why = "the polished pose leaves the priors' gates";
@@ -1884,8 +1880,6 @@ RelocalizationResult Relocalizer::relocalize(const RelocalizationQuery& q, Prior
                  (verify_keyframes == 0 || verified < cfg.min_verified_matches)) {
         why = format("%.0f ORB matches of %.0f nearby prior keyframes agree with the polished pose", verified,
                      verify_keyframes);
-      } else if (!(score_ratio >= 1.0 - cfg.orb_refine_max_score_loss)) {
-        why = format("the structure scores the polished pose %.2f of the NDT fit's", score_ratio);
       } else {
         ++res.orb_refine_accepted;
         res.orb_refined = true;

@@ -1,5 +1,6 @@
 // The batched Hamming kernels (hamming_kernel.hpp). Oracle: descriptor.hpp's one-pair count on the
-// same random descriptors, including all-equal and all-different pairs; the kernel in use is named.
+// same random descriptors, including all-equal and all-different pairs, for the kernel in use and the
+// portable one; the kernel in use is named.
 
 #include <cstdint>
 #include <cstring>
@@ -42,6 +43,12 @@ TEST(HammingKernel, GivenRandomDescriptorsThenTheBatchedDistancesEqualThePairwis
               hamming_distance(query.data(), &train[static_cast<size_t>(t) * kOrbDescriptorBytes]))
         << t;
   }
+
+  // The portable kernel (SWAR where the target ISA has no population count) gives the same: on a host
+  // where the kernel in use is the POPCNT one, both are checked.
+  std::vector<int> portable(kTrain, -1);
+  detail::hamming_distances_portable(query.data(), train.data(), kTrain, portable.data());
+  EXPECT_EQ(portable, out);
 
   // Gathered: every third descriptor, backwards.
   std::vector<uint32_t> ids;

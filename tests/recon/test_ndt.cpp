@@ -491,7 +491,10 @@ TEST(Ndt, GivenACreatedAlignerThenAligningAndBuildingAllocateNothing) {
     const NdtResult r = ndt.align(p.target.view(), p.source.view(), Eigen::Isometry3d::Identity());
     ASSERT_TRUE(target->build(p.target.view(), 0.5).ok());
     const NdtResult r2 = ndt.align_level(*target, p.source.view(), r.T_target_source);
+    const NdtTarget* level = &target.value();
+    const NdtResult r3 = ndt.align_prebuilt(&level, 1, p.source.view(), r.T_target_source);
     EXPECT_EQ(scope.allocations(), 0u) << threads << " threads";
+    EXPECT_TRUE(r3.converged);
     EXPECT_TRUE(r.converged);
     EXPECT_TRUE(r2.converged);
     EXPECT_EQ(r2.levels, 1);

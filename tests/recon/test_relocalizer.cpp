@@ -516,9 +516,10 @@ TEST(Relocalizer, GivenAKnownOffsetThenItIsRecoveredExactlyWithAndWithoutPriors)
   }
 }
 
-// The whole prior's targets are built only when every cloud is in memory, and serve only the prior
-// (and the clouds) they were built over; otherwise relocalize() gathers points as before.
-TEST(Relocalizer, GivenAPriorOverThePointBudgetOrAnotherPriorThenTheWholePriorTargetsAreNotUsed) {
+// The whole prior's targets are built only when every cloud is in memory and they fit the voxel
+// budget, and serve only the prior (and the clouds) they were built over; otherwise relocalize()
+// gathers points as before.
+TEST(Relocalizer, GivenAPriorOverThePointOrVoxelBudgetOrAnotherPriorThenTheWholePriorTargetsAreNotUsed) {
   const Eigen::Isometry3d T_true = known_T_prior_world();
   const CurrentRun run = make_current(walk().query_lab, T_true);
   {
@@ -551,20 +552,47 @@ TEST(Relocalizer, GivenAPriorOverThePointBudgetOrAnotherPriorThenTheWholePriorTa
     ASSERT_TRUE(prior.ok());
     prior->preload_clouds();
     EXPECT_FALSE(reloc->prepare_targets(*prior).built);
+    // Over the voxel budget: nothing built, the reason says so.
+    RelocalizerConfig tight;
+    tight.max_whole_prior_voxels = 2000;
+    auto small = Relocalizer::create(tight, walk().K, kMaxFeatures);
+    ASSERT_TRUE(small.ok());
+    const Relocalizer::WholePriorTargets w = small->prepare_targets(*prior);
+    EXPECT_FALSE(w.built);
+    EXPECT_EQ(w.levels, 0);
+    EXPECT_NE(w.why_not.find("max_whole_prior_voxels"), std::string::npos) << w.why_not;
+    // Within it, the capacity allocated stays within twice the voxels occupied (or the 1024 floor).
+    Relocalizer roomy = make_relocalizer();
+    const Relocalizer::WholePriorTargets built = roomy.prepare_targets(*prior);
+    ASSERT_TRUE(built.built) << built.why_not;
+    EXPECT_LE(built.capacity_voxels, std::max<int64_t>(2 * built.voxels, 4 * 1024));
+    EXPECT_LE(built.capacity_voxels, RelocalizerConfig{}.max_whole_prior_voxels);
+    // One target per resolution serves both stages: their target parameters must agree.
+    RelocalizerConfig mismatch;
+    mismatch.ndt_coarse.outlier_ratio = 0.4;
+    EXPECT_EQ(Relocalizer::create(mismatch, walk().K, kMaxFeatures).status().code(),
+              core::ErrorCode::kInvalidArgument);
+    mismatch.whole_prior_targets = false;  // gathered targets: each stage builds its own
+    EXPECT_TRUE(Relocalizer::create(mismatch, walk().K, kMaxFeatures).ok());
   }
   {
-    // Built over one opening of the store, then given another: the other's points are gathered.
+    // Built over one opening of the store, then given another with the same clouds loaded in the same
+    // order (the same cloud generation): only the instance tells them apart, and the other's points
+    // are gathered.
     auto built_over = PriorMap::open(stores().full);
     auto other = PriorMap::open(stores().full);
     ASSERT_TRUE(built_over.ok() && other.ok());
     Relocalizer reloc = make_relocalizer();
     ASSERT_NO_FATAL_FAILURE(use_targets(Targets::kWholePrior, &built_over.value(), &reloc));
-    const uint64_t generation = built_over->cloud_generation();
+    other->preload_clouds();
+    ASSERT_EQ(other->cloud_generation(), built_over->cloud_generation());
     const RelocalizationResult r = reloc.relocalize(make_query(run), &other.value());
     ASSERT_TRUE(r.localized) << r.message;
-    EXPECT_LT(r.counters.target_points, built_over->counters().loaded_points);
-    EXPECT_GT(other->counters().cloud_loads, 0u);  // its clouds were read for the gathers
-    EXPECT_EQ(built_over->cloud_generation(), generation);
+    EXPECT_LT(r.counters.target_points, other->counters().loaded_points);
+    // Given the prior it was built over, the same relocalizer uses the whole prior's targets.
+    const RelocalizationResult w = reloc.relocalize(make_query(run), &built_over.value());
+    ASSERT_TRUE(w.localized) << w.message;
+    EXPECT_EQ(w.counters.target_points, built_over->counters().loaded_points);
   }
 }
 

@@ -27,4 +27,9 @@ void hamming_distances_at(const uint8_t* query, const uint8_t* base, const uint3
 // population count) or "swar" (descriptor.hpp's portable count).
 const char* hamming_kernel_name();
 
+namespace detail {
+// The portable kernel whatever the CPU (tests compare it with the one in use).
+void hamming_distances_portable(const uint8_t* query, const uint8_t* train, int n, int* out);
+}  // namespace detail
+
 }  // namespace hwr::estimation

@@ -35,10 +35,11 @@
 //     is one. A position prior adds seeds of its own: with a yaw prior one (the paper's GNSS + magnetometer
 //     case), without one a sweep of yaw_sweep_steps yaws when ORB gave nothing.
 //  d. NDT (recon::NdtAligner, Magnusson 2009) of the current local cloud, moved by each hypothesis,
-//     against the prior points around it (PriorMap::points_near: the cloud's extent + target_margin_m
-//     about its moved centroid), coarse to fine over ndt_coarse.resolutions_m. A coarse result seeds
-//     the next stage when it converged or only stopped early (line search on a voxel-face jump, out of
-//     iterations) and covers min_inlier_ratio of the cloud; the coarse levels have no degeneracy test
+//     against the prior: the whole prior's targets, built once (prepare_targets, when every cloud is
+//     in memory), else the prior points around it (PriorMap::points_near: the cloud's extent +
+//     target_margin_m about its moved centroid), coarse to fine over ndt_coarse.resolutions_m. A coarse
+//     result seeds the next stage when it converged or only stopped early (line search on a voxel-face jump,
+//     out of iterations) and covers min_inlier_ratio of the cloud; the coarse levels have no degeneracy test
 //     (at 1-2 m voxels the ground dominates the Hessian; the fine stage judges). The keep_best (3)
 //     best by NDT score are aligned again at ndt_fine.resolutions_m ("three high-resolution poses");
 //     the best of those is the answer. The fine stage's source is the local map's structure points
@@ -92,7 +93,8 @@
 //     motion. Limitations: at most top_k (8) candidates and keep_best (3) refined poses: more copies
 //     of one place than that are not all scored, but one rival suffices for kAmbiguous; a copy whose
 //     descriptors differ from the query's by more than vote_tie_bits beyond the other copy's gets
-//     nearest-only votes (few) and is found only by the rival scan.
+//     nearest-only votes (few) and is found only by the rival scan (with a position prior only among
+//     the candidates: a copy outside 2 d + k sigma is no candidate and cannot take votes).
 //
 // Scores: NDT's score of eq. 6.9 summed over the (same, subsampled) source cloud, divided by its
 // point count, so hypotheses are compared on the same cloud at the same resolution.
@@ -105,11 +107,11 @@
 // pose-only refiner and keypoint marks (max_features). relocalize() runs off the control loop and
 // allocates: the prior LSH index (prepare(), once per prior map: per feature a copy of its descriptor
 // (32 B), its keyframe and a query mark (4 B each) and 8 B per table (its id and keyframe in bucket
-// order), plus 4 (2^key_bits + 1) B of offsets per table; with 4 x 16-bit tables ~11 MB for the lab's 158k
+// order), plus 4 (2^key_bits + 1) B of offsets per table; with 4 x 16-bit tables ~12 MB for the lab's 158k
 // features, the build's 4 B per feature of key scratch freed), the whole prior's NDT targets
-// (prepare_targets(), once per prior map: ~200 B per occupied voxel and resolution, at most twice the
-// voxels used; the sim outdoor prior's 3.6M thinned points fill 89k voxels over 2, 1, 0.5 and 0.25 m,
-// ~19-38 MB), the current
+// (prepare_targets(), once per prior map: ~200-240 B per voxel of capacity, at most twice the voxels
+// occupied, within max_whole_prior_voxels; the sim outdoor prior's 3.6M thinned points occupy 89k
+// voxels over 2, 1, 0.5 and 0.25 m: 18-42 MB), the current
 // keyframe's LSH tables (FLANN allocates them on every build), the per-prior-keyframe vote and position
 // tables (first call), the prior target cloud (grows to the largest points_near answer, then reused), the
 // structure split (a voxel hash over the local map, and the structure / fine-source buffers, reused), the
@@ -263,11 +265,12 @@ struct RelocalizerConfig {
   double orb_refine_max_score_loss = 0.1;
   // The same refinement of the converged fine fit step e accepted (only with orb_refine and
   // min_structure_points), with the same gates but a tighter move; the polished pose must pass step
-  // e's pose-dependent tests again (priors' gates, the ORB seed's max_ndt_correction, the ORB check)
-  // and keep at least (1 - orb_refine_max_score_loss) of the NDT fit's structure score at both of the
-  // margin's levels (the margin itself is the NDT fit's: NDT's pose maximises that score, so taken
-  // again at the polished pose it is lower by construction), else NDT's pose is returned. It changes
-  // the pose, never whether it is accepted (but for orb_polish_rejects_beyond_move). Measured (hwr-bench
+  // e's pose-dependent tests again (priors' gates, the ORB seed's max_ndt_correction, the ORB check),
+  // else NDT's pose is returned. The score margin is the NDT fit's: NDT's pose maximises that score,
+  // so taken again at the polished pose (until 2026-12-02) it was lower by construction and refused
+  // polishes of fits 4-7 cm off; within the polish's move no rival is near and refine_by_orb's
+  // agreement test holds. It changes the pose, never whether it is accepted (but for
+  // orb_polish_rejects_beyond_move). Measured (hwr-bench
   // reloc --scenes lab --starts 50 --seed 1,
   // --orb-refine weak vs all): lab 90 % -> 100 % within 3 cm / 0.3 deg, error (b) max
   // 4.4 cm / 0.42 deg -> 0.42 cm / 0.08 deg.
@@ -294,7 +297,7 @@ struct RelocalizerConfig {
   // (hwr-bench reloc --verbose prints the NDT time per attempt). With the whole prior's targets
   // the coarse Newton iterations were the stage's cost: 3000 -> 1500 source points took the outdoor
   // both-priors row's coarse stage from 34 to 17 ms per successful attempt (median, 50 starts) with the
-  // same successes and errors (docs/relocalization.md).
+  // same successes and errors (docs/relocalization.md "Speed II").
   int coarse_source_points = 1'500;
   int coarse_target_points = 100'000;
   double target_margin_m = 2.0;  // beyond the local cloud's extent
@@ -305,6 +308,10 @@ struct RelocalizerConfig {
   // coarse_target_points) and builds its targets (hwr-bench reloc, both priors outdoors: building them
   // was 27 % of relocalize() and gathering the points 10 %).
   bool whole_prior_targets = true;
+  // Voxels the whole prior's targets may allocate, all resolutions together (~200-240 bytes each:
+  // 10^6 ~ 0.24 GB); a prior that needs more gathers per query. The sim outdoor prior allocates
+  // ~0.13-0.19 x 10^6 for its 89k occupied voxels.
+  int64_t max_whole_prior_voxels = 1'000'000;
   int keep_best = 3;  // paper: "three high-resolution poses"
   // e. acceptance
   double min_inlier_ratio = 0.7;
@@ -465,14 +472,17 @@ class Relocalizer {
   // steps d and e use, over the clouds in memory, when all of them are (PriorMap::all_clouds_in_memory:
   // call it after PriorMap::preload_clouds); else, or when the config says no, leaves the per-query
   // targets in use. They serve relocalize() while the prior's clouds stay as they were
-  // (PriorMap::cloud_generation). Allocates ~200 bytes per occupied voxel and level (outdoor sim prior,
-  // 3.6M points: see docs/relocalization.md). Errors: none but allocation; the result says what was built.
+  // (PriorMap::cloud_generation). Allocates ~200-240 bytes per voxel of capacity (at most twice the
+  // occupied voxels, within max_whole_prior_voxels; outdoor sim prior, 3.6M points: see
+  // docs/relocalization.md). Nothing throws: a prior over the voxel budget or an allocation that fails
+  // leaves nothing built and the per-query targets in use; the result says what was built or why not.
   struct WholePriorTargets {
     bool built = false;
-    std::string why_not;  // when not built
-    int64_t points = 0;   // prior points voxelised
-    int levels = 0;       // resolutions built
-    int64_t voxels = 0;   // occupied voxels, all levels
+    std::string why_not;          // when not built
+    int64_t points = 0;           // prior points voxelised
+    int levels = 0;               // resolutions built
+    int64_t voxels = 0;           // occupied voxels, all levels
+    int64_t capacity_voxels = 0;  // allocated (RelocalizerConfig::max_whole_prior_voxels bounds it)
     double seconds = 0;
   };
   // keep_going (optional) is asked before each resolution: false stops there, nothing built.
