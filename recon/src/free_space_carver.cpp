@@ -82,6 +82,11 @@ struct FreeSpaceCarver::Impl {
     float bias_window_m = 0;
     int cluster = 0;
     bool ray_near = false, ray_hit = false;
+    // Check pass on measured planes: one residual per ray, the mean s of its pairs within ±margin_m of
+    // the plane, else (none that close) the near pair's s nearest the plane.
+    bool per_ray = false;
+    float nearest_s = 0, band_sum_s = 0;
+    int band_n = 0;
     std::array<int, kNormalClusters> near_rays{}, far_rays{};
     std::array<int64_t, kNormalClusters> surface_pairs{};
     std::array<double, kNormalClusters> margin_sum_m{};  // of those pairs' free margins
@@ -153,6 +158,17 @@ struct FreeSpaceCarver::Impl {
       }
       if (rc->pass == Pass::kCheck) {
         rc->ray_hit = true;
+        if (rc->per_ray) {
+          if (std::abs(s) < rc->bias_window_m) {
+            if (!rc->ray_near || std::abs(s) < std::abs(rc->nearest_s)) rc->nearest_s = s;
+            rc->ray_near = true;
+            if (std::abs(s) < rc->margin_m) {
+              rc->band_sum_s += s;
+              ++rc->band_n;
+            }
+          }
+          continue;
+        }
         if (std::abs(s) < rc->bias_window_m) {
           const int bin = static_cast<int>((s + rc->bias_window_m) / (2.0f * rc->bias_window_m) * kBiasBins);
           const size_t k_cl = static_cast<size_t>(rc->cluster);
@@ -240,6 +256,23 @@ struct FreeSpaceCarver::Impl {
     const int bin = std::min(PointToPlaneSystem::kResidualBins - 1,
                              static_cast<int>(r_sigmas / PointToPlaneSystem::kResidualBinSigmas));
     ++system->abs_residual_hist[static_cast<size_t>(bin)];
+  }
+
+  // After a check ray: its near / far count, and on measured planes its one residual.
+  static void finish_check_ray(RayContext* rc, int cluster) {
+    const size_t k = static_cast<size_t>(cluster);
+    if (rc->ray_near) {
+      ++rc->near_rays[k];
+      if (rc->per_ray) {
+        const float r = rc->band_n > 0 ? rc->band_sum_s / static_cast<float>(rc->band_n) : rc->nearest_s;
+        const int bin = static_cast<int>((r + rc->bias_window_m) / (2.0f * rc->bias_window_m) * kBiasBins);
+        ++rc->bias_hist[k][static_cast<size_t>(std::clamp(bin, 0, kBiasBins - 1))];
+        ++rc->surface_pairs[k];
+        rc->margin_sum_m[k] += rc->margin_m;
+      }
+    } else if (rc->ray_hit) {
+      ++rc->far_rays[k];
+    }
   }
 
   // The q-quantile of the check pass's histogram of s in cluster k (bin centre).
@@ -337,13 +370,7 @@ struct FreeSpaceCarver::Impl {
         // rays go on to check_reach_behind_m: a prior surface behind the measured one is "far".
         const float behind_m = vote ? margin : std::max(margin, c.check_reach_behind_m);
         cast_ray(&rc, z + (behind_m + c.point_radius_m) / (d_norm * cos_inc));
-        if (pass == Pass::kCheck) {
-          if (rc.ray_near) {
-            ++rc.near_rays[static_cast<size_t>(cluster)];
-          } else if (rc.ray_hit) {
-            ++rc.far_rays[static_cast<size_t>(cluster)];
-          }
-        }
+        if (pass == Pass::kCheck) finish_check_ray(&rc, cluster);
       }
     }
   }
@@ -452,6 +479,45 @@ struct FreeSpaceCarver::Impl {
       rc.align_n = 0;
       cast_ray(&rc, mp.z_m + (rc.align_c_m + config.point_radius_m) / (rc.d_norm * mp.cos_inc));
       if (rc.align_n > 0 && rc.align_w > 0.0f) add_residual(rc, R, o, mp, system);
+    }
+  }
+
+  // The pose check's pass on measured planes (header: observe with check planes): each plane's ray,
+  // endpoint and normal instead of a sparse pixel's ±normal_window_px differences.
+  void cast_check_planes(const MeasuredPlane* planes, int n_planes, const Eigen::Isometry3d& T_prior_cam,
+                         RayContext* rc_out) {
+    const FreeSpaceCarverConfig& c = config;
+    const Eigen::Matrix3f R = T_prior_cam.linear().cast<float>();
+    const Eigen::Vector3f o = T_prior_cam.translation().cast<float>();
+    RayContext& rc = *rc_out;
+    rtcInitIntersectContext(&rc.embree);
+    rc.self = this;
+    rc.o = o;
+    rc.pass = Pass::kCheck;
+    rc.per_ray = true;
+    rc.bias_window_m = c.bias_window_m;
+    for (int i = 0; i < n_planes; ++i) {
+      const MeasuredPlane& mp = planes[i];
+      const float z = mp.z_m;
+      if (!(z >= c.min_depth_m && z <= c.max_depth_m) || !(mp.cos_inc >= c.min_cos_incidence)) continue;
+      const float d_norm = mp.d_cam.norm();
+      const float range_m = z * d_norm;
+      const float sigma_range_m = c.depth_noise_k * z * z * d_norm;
+      const float sigma_pose_m = c.pose_sigma_m + c.pose_sigma_rad * range_m;
+      const float sigma_m = std::sqrt(sigma_range_m * sigma_range_m + sigma_pose_m * sigma_pose_m);
+      rc.margin_m = c.margin_min_m + c.k_sigma * sigma_m;
+      rc.n = R * mp.n_cam;
+      const int cluster = normal_cluster(rc.n);
+      rc.cluster = cluster;
+      rc.ray_near = rc.ray_hit = false;
+      rc.band_sum_s = 0.0f;
+      rc.band_n = 0;
+      rc.d = R * mp.d_cam;
+      rc.q = o + z * rc.d;
+      rc.d_norm = d_norm;
+      const float behind_m = std::max(rc.margin_m, c.check_reach_behind_m);
+      cast_ray(&rc, z + (behind_m + c.point_radius_m) / (d_norm * mp.cos_inc));
+      finish_check_ray(&rc, cluster);
     }
   }
 
@@ -673,9 +739,19 @@ core::Expected<FreeSpaceObserveStats> FreeSpaceCarver::observe(const cv::Mat& de
                                                                const hal::PinholeIntrinsics& K,
                                                                const Eigen::Isometry3d& T_prior_cam,
                                                                int stride_px) {
+  return observe(depth_m, K, T_prior_cam, stride_px, nullptr, 0);
+}
+
+core::Expected<FreeSpaceObserveStats> FreeSpaceCarver::observe(
+    const cv::Mat& depth_m, const hal::PinholeIntrinsics& K, const Eigen::Isometry3d& T_prior_cam,
+    int stride_px, const MeasuredPlane* check_planes, int n_check_planes) {
   Impl& m = *impl_;
   const FreeSpaceCarverConfig& c = m.config;
   HWR_RETURN_IF_ERROR(check_frame(depth_m, K, T_prior_cam, stride_px, m.scene != nullptr));
+  if (n_check_planes < 0 || (n_check_planes > 0 && check_planes == nullptr)) {
+    return core::InvalidArgument("free-space carver: check planes must be a non-null array of n >= 0 (got " +
+                                 std::to_string(n_check_planes) + ")");
+  }
 
   ScopedFlushDenormals ftz;
   FreeSpaceObserveStats stats;
@@ -685,7 +761,12 @@ core::Expected<FreeSpaceObserveStats> FreeSpaceCarver::observe(const cv::Mat& de
     // Pose check first (header): a sparse pass that only measures near / far rays and residuals.
     Impl::RayContext check;
     FreeSpaceObserveStats ignored;
-    m.cast(depth_m, K, T_prior_cam, stride_px * c.bias_check_subsample, Impl::Pass::kCheck, &check, &ignored);
+    if (check_planes != nullptr) {
+      m.cast_check_planes(check_planes, n_check_planes, T_prior_cam, &check);
+    } else {
+      m.cast(depth_m, K, T_prior_cam, stride_px * c.bias_check_subsample, Impl::Pass::kCheck, &check,
+             &ignored);
+    }
     bool any_failed = false;
     for (int k = 0; k < kNormalClusters; ++k) {
       const size_t kk = static_cast<size_t>(k);

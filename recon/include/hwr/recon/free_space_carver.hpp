@@ -54,6 +54,14 @@
 //        cast nothing (unverified_rays).
 //    Quartiles resist changed geometry inside the window as long as it is the minority; changes
 //    beyond the window count against the near fraction (a largely changed view keeps the prior).
+//  - Pose check on measured planes (observe() with check planes, from measure_planes() of the same
+//    image; PriorMapUpdater passes its pose refinement's): the check rays are the planes' pixels,
+//    with their least-squares endpoint and normal, and each near ray enters the cluster's histogram
+//    once, with the mean s of its pairs within ±margin of the plane (else its pair nearest the plane).
+//    Same clusters, tests and limits. Why: on the simulated lab revisit the sparse pass failed most
+//    aligned frames (with poses at the simulator's truth too) on the interquartile range: its ±2 px
+//    normals tilt by tens of degrees at 2-3 m, and a grazing ray adds tens of pairs to the histogram,
+//    a frontal one one or two (docs/prior_map_update.md has the numbers).
 
 // Point-to-plane normal equations for pose refinement (prior_pose_refiner.hpp, issue #6 item 3):
 //  - measure_planes() fits the local plane of every sampled pixel by least squares of 1/z over
@@ -127,7 +135,7 @@ struct FreeSpaceCarverConfig {
   float min_near_fraction = 0.8f;  // near / (near + far) rays of a checked cluster
   int min_cluster_rays = 30;       // near + far check rays for a cluster to be checked
   int bias_check_subsample = 4;
-  int min_bias_pairs = 200;  // near pairs over the passed clusters, else the frame is rejected
+  int min_bias_pairs = 200;  // near pairs (rays, on measured planes) over the passed clusters, else rejected
   // Embree worker threads (BVH builds in set_prior; rays are cast on the caller's thread). 1: the
   // AGX control loop shares the cores.
   int embree_threads = 1;
@@ -147,8 +155,8 @@ inline constexpr int kNormalClusters = 6;
 struct SurfaceClusterCheck {
   int near_rays = 0;     // check rays with a prior point within ±bias_window_m of the measured plane
   int far_rays = 0;      // check rays meeting prior points, none within the window
-  int64_t pairs = 0;     // point-ray pairs with |s| < bias_window_m
-  float median_m = 0;    // of s over the pairs (0.5 mm bins)
+  int64_t pairs = 0;     // point-ray pairs with |s| < bias_window_m (on measured planes: near rays)
+  float median_m = 0;    // of s over the pairs (on measured planes: the rays' residuals; 0.5 mm bins)
   float iqr_m = 0;       // interquartile range
   float margin_m = 0;    // mean free margin of the pairs
   bool checked = false;  // near + far >= min_cluster_rays
@@ -243,6 +251,11 @@ class FreeSpaceCarver {
   // size, invalid intrinsics, stride_px < 1, T_prior_cam not a finite rigid transform.
   core::Expected<FreeSpaceObserveStats> observe(const cv::Mat& depth_m, const hal::PinholeIntrinsics& K,
                                                 const Eigen::Isometry3d& T_prior_cam, int stride_px);
+  // The same, with the pose check on measured planes (measure_planes() of the same image) instead of
+  // the sparse pass's ±normal_window_px differences (header). check_planes null: the sparse pass.
+  core::Expected<FreeSpaceObserveStats> observe(const cv::Mat& depth_m, const hal::PinholeIntrinsics& K,
+                                                const Eigen::Isometry3d& T_prior_cam, int stride_px,
+                                                const MeasuredPlane* check_planes, int n_check_planes);
 
   // The local planes of depth_m at the pixels params samples, for accumulate_point_to_plane (header;
   // the carver's config gives the depth range, noise, planarity and incidence limits). Writes at most
