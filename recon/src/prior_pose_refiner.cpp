@@ -74,11 +74,8 @@ core::Expected<PriorPoseRefiner> PriorPoseRefiner::create(const PriorPoseRefiner
   return PriorPoseRefiner(c, K, capacity);
 }
 
-core::Expected<PriorPoseRefinement> PriorPoseRefiner::refine(const PriorView* views, int n_views,
-                                                             const cv::Mat& depth_m,
-                                                             const PriorPoseGuess& guess) {
-  const PriorPoseRefinerConfig& c = config_;
-  const Eigen::Isometry3d& T_prior_cam_guess = guess.T_prior_cam;
+core::Status PriorPoseRefiner::check_inputs(const PriorView* views, int n_views,
+                                            const PriorPoseGuess& guess) {
   if (n_views < 0 || (n_views > 0 && views == nullptr)) {
     return core::InvalidArgument("pose refinement: views must be a non-null array of n_views >= 0 (got " +
                                  std::to_string(n_views) + ")");
@@ -92,8 +89,17 @@ core::Expected<PriorPoseRefinement> PriorPoseRefiner::refine(const PriorView* vi
       !guess.T_prior_cam_anchor.matrix().allFinite()) {
     return core::InvalidArgument("pose refinement: the guess (poses, information) must be finite");
   }
+  return core::Status::Ok();
+}
+
+core::Expected<PriorPoseRefinement> PriorPoseRefiner::refine(const PriorView* views, int n_views,
+                                                             const cv::Mat& depth_m,
+                                                             const PriorPoseGuess& guess) {
+  const PriorPoseRefinerConfig& c = config_;
+  HWR_RETURN_IF_ERROR(check_inputs(views, n_views, guess));
   PriorPoseRefinement out;
-  out.T_prior_cam = T_prior_cam_guess;
+  out.T_prior_cam = guess.T_prior_cam;
+  n_planes_ = 0;
   if (!c.enabled || n_views == 0) return out;
 
   // The keyframe's local planes, once (header).
@@ -109,6 +115,29 @@ core::Expected<PriorPoseRefinement> PriorPoseRefiner::refine(const PriorView* vi
   auto n_planes = views[0].carver->measure_planes(depth_m, K_, sampling, planes_.data(),
                                                   static_cast<int>(planes_.size()));
   if (!n_planes.ok()) return n_planes.status();
+  n_planes_ = n_planes.value();
+  return solve(views, n_views, guess, c.max_iterations);
+}
+
+core::Expected<PriorPoseRefinement> PriorPoseRefiner::refine_again(const PriorView* views, int n_views,
+                                                                   const PriorPoseGuess& guess,
+                                                                   int max_iterations) {
+  HWR_RETURN_IF_ERROR(check_inputs(views, n_views, guess));
+  PriorPoseRefinement out;
+  out.T_prior_cam = guess.T_prior_cam;
+  if (!config_.enabled || n_views == 0 || n_planes_ == 0) return out;
+  const int iterations =
+      max_iterations > 0 ? std::min(max_iterations, config_.max_iterations) : config_.max_iterations;
+  return solve(views, n_views, guess,
+               std::max(iterations, std::min(config_.min_iterations, config_.max_iterations)));
+}
+
+core::Expected<PriorPoseRefinement> PriorPoseRefiner::solve(const PriorView* views, int n_views,
+                                                            const PriorPoseGuess& guess, int max_iterations) {
+  const PriorPoseRefinerConfig& c = config_;
+  const Eigen::Isometry3d& T_prior_cam_guess = guess.T_prior_cam;
+  PriorPoseRefinement out;
+  out.T_prior_cam = T_prior_cam_guess;
   PointToPlaneParams params;
   params.window_m = c.window_m;
   params.tukey_c_sigmas = 0.0f;  // first iteration: every pair within the window
@@ -124,12 +153,12 @@ core::Expected<PriorPoseRefinement> PriorPoseRefiner::refine(const PriorView* vi
   Matrix6d U = Matrix6d::Zero();
   int m = 0;
   bool converged = false;
-  for (int it = 1; it <= c.max_iterations && !converged; ++it) {
+  for (int it = 1; it <= max_iterations && !converged; ++it) {
     system.clear();
     for (int i = 0; i < n_views; ++i) {
       const Eigen::Isometry3d T_segment_cam = views[i].T_prior_segment.inverse() * T;
-      HWR_RETURN_IF_ERROR(views[i].carver->accumulate_point_to_plane(planes_.data(), n_planes.value(),
-                                                                     T_segment_cam, params, &system));
+      HWR_RETURN_IF_ERROR(views[i].carver->accumulate_point_to_plane(planes_.data(), n_planes_, T_segment_cam,
+                                                                     params, &system));
     }
     out.iterations = it;
     out.residuals = system.residuals;

@@ -127,13 +127,28 @@ class PriorPoseRefiner {
   core::Expected<PriorPoseRefinement> refine(const PriorView* views, int n_views, const cv::Mat& depth_m,
                                              const PriorPoseGuess& guess);
 
+  // The same from another guess, or against other views, with the planes the last refine() measured
+  // (same image; kOff when it measured none). PriorMapUpdater refines each segment alone this way.
+  // max_iterations > 0 caps the iterations below the configuration's (a guess that is already close).
+  core::Expected<PriorPoseRefinement> refine_again(const PriorView* views, int n_views,
+                                                   const PriorPoseGuess& guess, int max_iterations = 0);
+
   const PriorPoseRefinerConfig& config() const { return config_; }
+  // The local planes the last refine() measured (none before one, or when it was off): the carver's
+  // pose check casts them too (FreeSpaceCarver::observe with check planes).
+  const MeasuredPlane* planes() const { return planes_.data(); }
+  int plane_count() const { return n_planes_; }
 
  private:
   PriorPoseRefiner(const PriorPoseRefinerConfig& config, const hal::PinholeIntrinsics& K, int capacity);
+  static core::Status check_inputs(const PriorView* views, int n_views, const PriorPoseGuess& guess);
+  // Gauss-Newton from the guess on planes_[0, n_planes_) (header).
+  core::Expected<PriorPoseRefinement> solve(const PriorView* views, int n_views, const PriorPoseGuess& guess,
+                                            int max_iterations);
   PriorPoseRefinerConfig config_;
   hal::PinholeIntrinsics K_;
   std::vector<MeasuredPlane> planes_;  // capacity: the sampled pixels of one image
+  int n_planes_ = 0;                   // measured by the last refine()
 };
 
 const char* to_string(PoseRefinement r);
