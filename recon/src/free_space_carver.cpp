@@ -77,6 +77,7 @@ struct FreeSpaceCarver::Impl {
     int64_t free_votes = 0, occupied_votes = 0;
     // Voting pass: which normal clusters passed the check (their rays vote).
     std::array<bool, kNormalClusters> cluster_votes{};
+    std::array<float, kNormalClusters> cluster_margin_floor_m{};  // check on planes: the residuals' spread
     // Check pass, per normal cluster: near / far rays and the histogram of s over
     // [-bias_window_m, bias_window_m] (kBiasBins bins). The current ray's cluster and what it met.
     float bias_window_m = 0;
@@ -349,9 +350,11 @@ struct FreeSpaceCarver::Impl {
         const float sigma_range_m = c.depth_noise_k * z * z * d_norm;
         const float sigma_pose_m = c.pose_sigma_m + c.pose_sigma_rad * range_m;
         const float sigma_m = std::sqrt(sigma_range_m * sigma_range_m + sigma_pose_m * sigma_pose_m);
-        const float margin = c.margin_min_m + c.k_sigma * sigma_m;
+        float margin = c.margin_min_m + c.k_sigma * sigma_m;
         rc.n = -(R * n_over_c).normalized();
         const int cluster = normal_cluster(rc.n);
+        // Voting on a cluster whose prior is thick (check on measured planes): free only beyond its spread.
+        if (vote) margin = std::max(margin, rc.cluster_margin_floor_m[static_cast<size_t>(cluster)]);
         if (vote && !rc.cluster_votes[static_cast<size_t>(cluster)]) {
           ++stats.unverified;
           continue;
@@ -552,12 +555,12 @@ core::Expected<FreeSpaceCarver> FreeSpaceCarver::create(const FreeSpaceCarverCon
       !(std::isfinite(c.k_sigma_occupied) && c.k_sigma_occupied >= 0 && c.k_sigma_occupied <= c.k_sigma) ||
       !(std::isfinite(c.planarity_sigmas) && c.planarity_sigmas >= 0) ||
       !(std::isfinite(c.planarity_rel) && c.planarity_rel >= 0) ||
-      !(std::isfinite(c.free_ratio) && c.free_ratio >= 0)) {
+      !(std::isfinite(c.free_ratio) && c.free_ratio >= 0) ||
+      !(std::isfinite(c.spread_margin_iqrs) && c.spread_margin_iqrs >= 0)) {
     return core::InvalidArgument(
         "free-space carver: depth_noise_k, k_sigma, margin_min_m, pose_sigma_m, pose_sigma_rad, "
-        "planarity_sigmas, "
-        "planarity_rel and free_ratio "
-        "must be finite and >= 0, and 0 <= k_sigma_occupied <= k_sigma");
+        "planarity_sigmas, planarity_rel, free_ratio and spread_margin_iqrs must be finite and >= 0, and "
+        "0 <= k_sigma_occupied <= k_sigma");
   }
   if (!(c.min_cos_incidence > 0.0f && c.min_cos_incidence <= 1.0f)) {
     return core::InvalidArgument("free-space carver: min_cos_incidence must be in (0, 1] (got " +
@@ -795,6 +798,7 @@ core::Expected<FreeSpaceObserveStats> FreeSpaceCarver::observe(
       any_failed = any_failed || !cl.passed;
       if (cl.passed) stats.surface_pairs += cl.pairs;
       rc.cluster_votes[kk] = cl.passed;
+      if (check_planes != nullptr) rc.cluster_margin_floor_m[kk] = c.spread_margin_iqrs * cl.iqr_m;
     }
     stats.pose_check = any_failed                               ? PoseCheck::kMisaligned
                        : stats.surface_pairs < c.min_bias_pairs ? PoseCheck::kTooFewPairs

@@ -80,6 +80,7 @@ struct PriorMapUpdaterConfig {
     c.depth_noise_k = 0.0015f;
     c.max_depth_m = 3.0f;
     c.max_iqr_to_margin = 1.0f;
+    c.spread_margin_iqrs = 2.0f;  // free_space_carver.hpp
     return c;
   }();
   int carve_stride_px = 2;  // every 2nd pixel in u and v (rays <= 2 point radii apart at ~2 m)
