@@ -10,6 +10,7 @@
 // old place is never wholly free: 100 % is not expected. Prints a readable block and key=value lines.
 #include "map_update_eval.hpp"
 
+#include <algorithm>
 #include <cstdio>
 #include <cstring>
 #include <string>
@@ -69,6 +70,7 @@ int run_map_update(int argc, char** argv) {
     return 1;
   }
   std::vector<hwr::recon::OrientedBox> old_place;
+  std::vector<std::string> old_place_names;  // the plate of each box
   size_t start = 0;
   while (start <= moved_list.size()) {
     const size_t comma = moved_list.find(',', start);
@@ -81,6 +83,7 @@ int run_map_update(int argc, char** argv) {
       b.T_world_box = p.T_world_plate;
       b.half_size_m = p.size_m / 2 + Eigen::Vector3d::Constant(margin_m);
       old_place.push_back(b);
+      old_place_names.push_back(p.name);
       ++found;
     }
     if (found == 0) {
@@ -105,15 +108,25 @@ int run_map_update(int argc, char** argv) {
     return 1;
   }
   int64_t old_before = 0, old_after = 0, else_before = 0, else_after = 0, old_all = 0;
+  // Per plate (a point in two plates' boxes, where a web stands on its base, counts for both): prior
+  // points in every segment, and before / after in the updated ones.
+  const size_t n_plates = old_place.size();
+  std::vector<int64_t> plate_all(n_plates, 0), plate_before(n_plates, 0), plate_after(n_plates, 0);
   int segments_compared = 0;
-  auto count = [&](const hwr::recon::SegmentRecord& s, int64_t* in_old, int64_t* elsewhere) {
+  auto count = [&](const hwr::recon::SegmentRecord& s, int64_t* in_old, int64_t* elsewhere,
+                   std::vector<int64_t>* per_plate) {
     for (const auto& p : s.points_segment) {
       const Eigen::Vector3d w = s.T_world_segment * Eigen::Vector3d(p.x_m, p.y_m, p.z_m);
       bool old = false;
-      for (const auto& b : old_place) old = old || b.distance_m(w) == 0.0;
+      for (size_t k = 0; k < n_plates; ++k) {
+        if (old_place[k].distance_m(w) != 0.0) continue;
+        old = true;
+        ++(*per_plate)[k];
+      }
       ++*(old ? in_old : elsewhere);
     }
   };
+  std::vector<int64_t> seg_plate(n_plates), seg_plate_after(n_plates);
   for (const auto& ps : prior_list.value()) {
     auto a = prior->read_segment(ps.segment_id);
     if (!a.ok()) {
@@ -123,8 +136,10 @@ int run_map_update(int argc, char** argv) {
     bool has_update = false;
     for (const auto& us : updated_list.value()) has_update = has_update || us.segment_id == ps.segment_id;
     int64_t o = 0, e = 0;
-    count(a.value(), &o, &e);
+    std::fill(seg_plate.begin(), seg_plate.end(), 0);
+    count(a.value(), &o, &e, &seg_plate);
     old_all += o;
+    for (size_t k = 0; k < n_plates; ++k) plate_all[k] += seg_plate[k];
     if (!has_update) {
       if (o > 0)
         std::printf("  segment %u: %lld old-place points, not updated\n", ps.segment_id,
@@ -139,7 +154,12 @@ int run_map_update(int argc, char** argv) {
     old_before += o;
     else_before += e;
     int64_t o_after = 0, e_after = 0;
-    count(b.value(), &o_after, &e_after);
+    std::fill(seg_plate_after.begin(), seg_plate_after.end(), 0);
+    count(b.value(), &o_after, &e_after, &seg_plate_after);
+    for (size_t k = 0; k < n_plates; ++k) {
+      plate_before[k] += seg_plate[k];
+      plate_after[k] += seg_plate_after[k];
+    }
     old_after += o_after;
     else_after += e_after;
     std::printf("  segment %u: %lld old-place points, %lld deleted; elsewhere %lld of %lld deleted\n",
@@ -158,10 +178,22 @@ int run_map_update(int argc, char** argv) {
       "  elsewhere in the updated segments: %lld of %lld points deleted (%.3f %%; static geometry and any "
       "removed clutter)\n",
       static_cast<long long>(else_before - else_after), static_cast<long long>(else_before), static_loss_pct);
+  std::vector<double> plate_pct(n_plates, 0);
+  for (size_t k = 0; k < n_plates; ++k) {
+    plate_pct[k] = plate_all[k] > 0 ? 100.0 * (plate_before[k] - plate_after[k]) / plate_all[k] : 0;
+    std::printf("  plate %s: %lld prior points, %lld deleted (%.1f %%)\n", old_place_names[k].c_str(),
+                static_cast<long long>(plate_all[k]),
+                static_cast<long long>(plate_before[k] - plate_after[k]), plate_pct[k]);
+  }
   std::printf(
       "map_update_segments=%d\nmoved_old_place_points=%lld\nmoved_old_place_deleted_pct=%.2f\n"
       "elsewhere_deleted_pct=%.4f\n",
       segments_compared, static_cast<long long>(old_all), old_deleted_pct, static_loss_pct);
+  for (size_t k = 0; k < n_plates; ++k) {
+    std::string key = old_place_names[k];
+    for (char& ch : key) ch = (ch == '/' || ch == ' ') ? '_' : ch;
+    std::printf("moved_plate_deleted_pct_%s=%.2f\n", key.c_str(), plate_pct[k]);
+  }
   return 0;
 }
 

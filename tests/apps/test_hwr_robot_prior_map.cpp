@@ -144,6 +144,9 @@ TEST(HwrRobotPriorMap, GivenASecondVisitStartedElsewhereThenItRelocalizesAndCont
   const size_t at = eval.out.find("elsewhere_deleted_pct=");
   ASSERT_NE(at, std::string::npos) << eval.out;
   EXPECT_LE(std::stod(eval.out.substr(at + 22)), 1.0) << "static loss <= 1 %: " << eval.out;
+  // Each moved plate is reported too (the fillet joint's base and web).
+  EXPECT_NE(eval.out.find("moved_plate_deleted_pct_fillet_n3_base="), std::string::npos) << eval.out;
+  EXPECT_NE(eval.out.find("moved_plate_deleted_pct_fillet_n3_web="), std::string::npos) << eval.out;
   std::printf("[ prior    ] %s", eval.out.substr(eval.out.find("map update:")).c_str());
 }
 

@@ -52,7 +52,11 @@ struct RelocalizationWorkerConfig {
   int max_attempts_logged = 256;  // status(): the first ones are kept
   bool update_prior = true;       // run the map update once localized
   PriorMapUpdaterConfig update;
-  int keyframe_slots = 4;
+  // Settled keyframes waiting for the map update (a depth image each, 1.2 MB at 640 x 480). With a pose
+  // per prior segment the update takes ~0.1 s of CPU per keyframe on this host: 4 slots dropped 46-94 of
+  // the lab revisit's keyframes, 16 drop none (the same share of the moved plate's old place deleted,
+  // 38.4 %; hwr-robot --source sim:lab-revisit --prior-map, docs/prior_map_update.md).
+  int keyframe_slots = 16;
 };
 
 // The local map a query carries (RelocalizationWorkerConfig::local_radius_m, max_local_points): the
