@@ -164,6 +164,48 @@ struct Collect final : UpdatedSegmentSink {
   }
 };
 
+// A store under the scene's folder holding `segments` (the tests below vary the prior's segments).
+std::string write_store(const Scene& s, const std::string& name, const std::vector<SegmentRecord>& segments) {
+  const std::string dir = s.tmp.path() + "/" + name;
+  StoreMetadata meta;
+  meta.run_id = "map-update-" + name;
+  meta.intrinsics = s.K;
+  auto store = MapStore::open(dir, meta);
+  EXPECT_TRUE(store.ok()) << store.status().message();
+  for (const SegmentRecord& seg : segments) EXPECT_TRUE(store.ok() && store->write_segment(seg).ok());
+  return dir;
+}
+
+// The scene's current views through an updater with `config` over the store at `dir`; the final
+// versions go to *sink, the counters to *counters.
+void run_updater(const Scene& s, const std::string& dir, const PriorMapUpdaterConfig& config, Collect* sink,
+                 PriorMapUpdaterCounters* counters) {
+  auto u = PriorMapUpdater::create(dir, config, s.K);
+  ASSERT_TRUE(u.ok()) << u.status().message();
+  for (const CurrentFrame& f : s.current) ASSERT_TRUE(u->observe(f.depth_m, f.T_prior_cam_true, sink).ok());
+  ASSERT_TRUE(u->finish(sink).ok());
+  *counters = u->counters();
+}
+
+// A decoy: the scene's segment under another id, its keyframes turned about their y axis (looking
+// elsewhere, the points unchanged).
+SegmentRecord turned_copy(const SegmentRecord& record, uint32_t id, double turn_deg) {
+  SegmentRecord out = record;
+  out.segment_id = id;
+  const Eigen::Isometry3d turn(Eigen::AngleAxisd(turn_deg * kDeg, Eigen::Vector3d::UnitY()));
+  for (StoredKeyframe& kf : out.keyframes) kf.T_world_cam = kf.T_world_cam * turn;
+  return out;
+}
+
+// The ghost's points left in an updated segment.
+int ghost_points_in(const Scene& s, const SegmentRecord& seg) {
+  int n = 0;
+  for (const CloudPoint& p : seg.points_segment) {
+    n += s.ghost_box_segment.contains(Eigen::Vector3d(p.x_m, p.y_m, p.z_m)) ? 1 : 0;
+  }
+  return n;
+}
+
 struct Outcome {
   int ghost_left = 0, static_left_near = 0;
   PriorMapUpdaterCounters counters;
@@ -416,36 +458,20 @@ TEST(PriorPoseRefiner, GivenARelocalizationSizedErrorThenTheConstrainedDirection
 // there. (By box distance alone both tie at 0 and the lower id, the decoy, won.)
 TEST(PriorMapUpdater, GivenMoreSegmentsInRangeThanSlotsThenTheOneThatLookedAtTheViewIsOpened) {
   const Scene& s = scene();
-  const std::string dir = s.tmp.path() + "/two_segments";
-  StoreMetadata meta;
-  meta.run_id = "map-update-two-segments";
-  meta.intrinsics = s.K;
-  auto store = MapStore::open(dir, meta);
-  ASSERT_TRUE(store.ok());
-  SegmentRecord decoy = s.record;
-  decoy.segment_id = 0;
-  const Eigen::Isometry3d turn(Eigen::AngleAxisd(180.0 * kDeg, Eigen::Vector3d::UnitY()));
-  for (StoredKeyframe& kf : decoy.keyframes) kf.T_world_cam = kf.T_world_cam * turn;
+  const SegmentRecord decoy = turned_copy(s.record, 0, 180.0);
   SegmentRecord real = s.record;
   real.segment_id = 1;
-  ASSERT_TRUE(store->write_segment(decoy).ok());
-  ASSERT_TRUE(store->write_segment(real).ok());
+  const std::string dir = write_store(s, "two_segments", {decoy, real});
 
   PriorMapUpdaterConfig config;
   config.max_open_segments = 1;
-  auto u = PriorMapUpdater::create(dir, config, s.K);
-  ASSERT_TRUE(u.ok()) << u.status().message();
   Collect sink;
-  for (const CurrentFrame& f : s.current) ASSERT_TRUE(u->observe(f.depth_m, f.T_prior_cam_true, &sink).ok());
-  ASSERT_TRUE(u->finish(&sink).ok());
-  EXPECT_EQ(u->counters().segments_opened, 1u);
+  PriorMapUpdaterCounters counters;
+  ASSERT_NO_FATAL_FAILURE(run_updater(s, dir, config, &sink, &counters));
+  EXPECT_EQ(counters.segments_opened, 1u);
   ASSERT_EQ(sink.segments.size(), 1u);
   EXPECT_EQ(sink.segments[0].segment_id, 1u);
-  int ghost_left = 0;
-  for (const CloudPoint& p : sink.segments[0].points_segment) {
-    ghost_left += s.ghost_box_segment.contains(Eigen::Vector3d(p.x_m, p.y_m, p.z_m)) ? 1 : 0;
-  }
-  EXPECT_LT(ghost_left, s.ghost_points / 2);
+  EXPECT_LT(ghost_points_in(s, sink.segments[0]), s.ghost_points / 2);
   config.look_ahead_m = -1;
   EXPECT_EQ(PriorMapUpdater::create(dir, config, s.K).status().code(), core::ErrorCode::kInvalidArgument);
 }
@@ -459,16 +485,7 @@ TEST(PriorMapUpdater, GivenMoreSegmentsInRangeThanSlotsThenTheOneThatLookedAtThe
 // be opened and its ghost deleted; ranked by look-at alone the decoy is.
 TEST(PriorMapUpdater, GivenASegmentThatSawTheViewFromFartherBackThenItIsOpenedBeforeOneThatLookedNearer) {
   const Scene& s = scene();
-  const std::string dir = s.tmp.path() + "/seen_from_back";
-  StoreMetadata meta;
-  meta.run_id = "map-update-seen-from-back";
-  meta.intrinsics = s.K;
-  auto store = MapStore::open(dir, meta);
-  ASSERT_TRUE(store.ok());
-  SegmentRecord decoy = s.record;
-  decoy.segment_id = 0;
-  const Eigen::Isometry3d turn(Eigen::AngleAxisd(90.0 * kDeg, Eigen::Vector3d::UnitY()));
-  for (StoredKeyframe& kf : decoy.keyframes) kf.T_world_cam = kf.T_world_cam * turn;
+  const SegmentRecord decoy = turned_copy(s.record, 0, 90.0);
   SegmentRecord target = s.record;
   target.segment_id = 1;
   for (StoredKeyframe& kf : target.keyframes) {
@@ -482,31 +499,23 @@ TEST(PriorMapUpdater, GivenASegmentThatSawTheViewFromFartherBackThenItIsOpenedBe
     kf.T_world_cam.linear().col(2) = z;
     kf.T_world_cam.translation() = eye;
   }
-  ASSERT_TRUE(store->write_segment(decoy).ok());
-  ASSERT_TRUE(store->write_segment(target).ok());
+  const std::string dir = write_store(s, "seen_from_back", {decoy, target});
   for (const bool by_view_samples : {true, false}) {
     PriorMapUpdaterConfig config;
     config.max_open_segments = 1;
     config.rank_by_view_samples = by_view_samples;
-    auto u = PriorMapUpdater::create(dir, config, s.K);
-    ASSERT_TRUE(u.ok()) << u.status().message();
     Collect sink;
-    for (const CurrentFrame& f : s.current)
-      ASSERT_TRUE(u->observe(f.depth_m, f.T_prior_cam_true, &sink).ok());
-    ASSERT_TRUE(u->finish(&sink).ok());
+    PriorMapUpdaterCounters counters;
+    ASSERT_NO_FATAL_FAILURE(run_updater(s, dir, config, &sink, &counters));
     int target_ghost_left = s.ghost_points;
     for (const SegmentRecord& seg : sink.segments) {
-      if (seg.segment_id != 1) continue;
-      target_ghost_left = 0;
-      for (const CloudPoint& p : seg.points_segment) {
-        target_ghost_left += s.ghost_box_segment.contains(Eigen::Vector3d(p.x_m, p.y_m, p.z_m)) ? 1 : 0;
-      }
+      if (seg.segment_id == 1) target_ghost_left = ghost_points_in(s, seg);
     }
     std::printf("[ update   ] ranked by %s: %zu segments updated, target's ghost %d -> %d\n",
                 by_view_samples ? "view samples" : "look-at alone", sink.segments.size(), s.ghost_points,
                 target_ghost_left);
     if (by_view_samples) {
-      EXPECT_EQ(u->counters().segments_opened, 1u);
+      EXPECT_EQ(counters.segments_opened, 1u);
       EXPECT_LT(target_ghost_left, s.ghost_points / 2);
     } else {
       EXPECT_EQ(target_ghost_left, s.ghost_points) << "control: the decoy is opened instead";
@@ -521,12 +530,6 @@ TEST(PriorMapUpdater, GivenASegmentThatSawTheViewFromFartherBackThenItIsOpenedBe
 // each is carved with its own pose and both ghosts go.
 TEST(PriorMapUpdater, GivenTwoSegmentsThatDisagreeByMillimetresThenEachIsCarvedWithItsOwnPose) {
   const Scene& s = scene();
-  const std::string dir = s.tmp.path() + "/disagreeing";
-  StoreMetadata meta;
-  meta.run_id = "map-update-disagreeing";
-  meta.intrinsics = s.K;
-  auto store = MapStore::open(dir, meta);
-  ASSERT_TRUE(store.ok());
   SegmentRecord a = s.record;
   a.segment_id = 0;
   SegmentRecord b = s.record;
@@ -534,26 +537,19 @@ TEST(PriorMapUpdater, GivenTwoSegmentsThatDisagreeByMillimetresThenEachIsCarvedW
   const Eigen::Isometry3d up(Eigen::Translation3d(0.0, 0.0, 0.008));
   b.T_world_segment = up * b.T_world_segment;
   for (StoredKeyframe& kf : b.keyframes) kf.T_world_cam = up * kf.T_world_cam;
-  ASSERT_TRUE(store->write_segment(a).ok());
-  ASSERT_TRUE(store->write_segment(b).ok());
+  const std::string dir = write_store(s, "disagreeing", {a, b});
   for (const bool per_segment : {true, false}) {
     PriorMapUpdaterConfig config;
     config.refine_per_segment = per_segment;
-    auto u = PriorMapUpdater::create(dir, config, s.K);
-    ASSERT_TRUE(u.ok()) << u.status().message();
     Collect sink;
-    for (const CurrentFrame& f : s.current)
-      ASSERT_TRUE(u->observe(f.depth_m, f.T_prior_cam_true, &sink).ok());
-    ASSERT_TRUE(u->finish(&sink).ok());
+    PriorMapUpdaterCounters counters;
+    ASSERT_NO_FATAL_FAILURE(run_updater(s, dir, config, &sink, &counters));
     int ghost_left[2] = {s.ghost_points, s.ghost_points};
     int static_lost[2] = {0, 0};
     for (const SegmentRecord& seg : sink.segments) {
       ASSERT_LT(seg.segment_id, 2u);
-      int ghost = 0, kept = 0;
-      for (const CloudPoint& p : seg.points_segment) {
-        ghost += s.ghost_box_segment.contains(Eigen::Vector3d(p.x_m, p.y_m, p.z_m)) ? 1 : 0;
-        ++kept;
-      }
+      const int ghost = ghost_points_in(s, seg);
+      const int kept = static_cast<int>(seg.points_segment.size());
       ghost_left[seg.segment_id] = ghost;
       static_lost[seg.segment_id] = (s.total_points - s.ghost_points) - (kept - ghost);
     }
@@ -562,9 +558,9 @@ TEST(PriorMapUpdater, GivenTwoSegmentsThatDisagreeByMillimetresThenEachIsCarvedW
         "views carved %llu, failed the check %llu, segment poses %llu\n",
         per_segment ? "per segment" : "joint pose only", s.ghost_points, ghost_left[0], ghost_left[1],
         static_lost[0], static_lost[1], s.static_points_near,
-        static_cast<unsigned long long>(u->counters().frames_carved),
-        static_cast<unsigned long long>(u->counters().frames_misaligned),
-        static_cast<unsigned long long>(u->counters().segment_poses_refined));
+        static_cast<unsigned long long>(counters.frames_carved),
+        static_cast<unsigned long long>(counters.frames_misaligned),
+        static_cast<unsigned long long>(counters.segment_poses_refined));
     if (per_segment) {
       for (int i = 0; i < 2; ++i) {
         EXPECT_LT(ghost_left[i], s.ghost_points / 3) << "segment " << i;
