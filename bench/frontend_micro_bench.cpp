@@ -207,43 +207,30 @@ void BM_FrontendLshBuildAndMatch(benchmark::State& state) {
 BENCHMARK(BM_FrontendLshBuildAndMatch)->Unit(benchmark::kMillisecond);
 
 // The relocalizer's pattern: the current keyframe indexed once, then matched with many prior
-// keyframes (LSH: match only; exact: every pair each time).
-void BM_FrontendLshMatchOnly(benchmark::State& state) {
+// keyframes (LSH: match only; exact: every pair each time). Matcher: LshMatcher or ExactMatcher.
+template <typename Matcher, typename Config>
+void match_only(benchmark::State& state, const Config& config) {
   const MatchSetup& s = match_setup();
   if (!s.ok) {
     state.SkipWithError("teddy dataset missing");
     return;
   }
-  LshMatcher lsh(1000, LshConfig{});
-  lsh.build(s.c);
+  Matcher matcher(1000, config);
+  matcher.build(s.c);
   std::vector<FeatureMatch> out(1000);
   int m = 0;
   for (auto _ : state) {
-    m = lsh.match(s.a, out.data(), 1000);
+    m = matcher.match(s.a, out.data(), 1000);
     benchmark::DoNotOptimize(m);
   }
   state.counters["matches"] = m;
   state.SetItemsProcessed(state.iterations());
 }
+
+void BM_FrontendLshMatchOnly(benchmark::State& state) { match_only<LshMatcher>(state, LshConfig{}); }
 BENCHMARK(BM_FrontendLshMatchOnly)->Unit(benchmark::kMillisecond);
 
-void BM_FrontendExactMatch(benchmark::State& state) {
-  const MatchSetup& s = match_setup();
-  if (!s.ok) {
-    state.SkipWithError("teddy dataset missing");
-    return;
-  }
-  ExactMatcher exact(1000, ExactMatchConfig{});
-  exact.build(s.c);
-  std::vector<FeatureMatch> out(1000);
-  int m = 0;
-  for (auto _ : state) {
-    m = exact.match(s.a, out.data(), 1000);
-    benchmark::DoNotOptimize(m);
-  }
-  state.counters["matches"] = m;
-  state.SetItemsProcessed(state.iterations());
-}
+void BM_FrontendExactMatch(benchmark::State& state) { match_only<ExactMatcher>(state, ExactMatchConfig{}); }
 BENCHMARK(BM_FrontendExactMatch)->Unit(benchmark::kMillisecond);
 
 Eigen::Isometry3d bench_pose() {

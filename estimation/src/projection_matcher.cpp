@@ -5,7 +5,6 @@
 #include <cstdint>
 #include <type_traits>
 
-#include "hwr/estimation/descriptor.hpp"
 #include "hwr/estimation/hamming_kernel.hpp"
 
 namespace hwr::estimation {
