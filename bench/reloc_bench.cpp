@@ -26,7 +26,7 @@
 //                   [--attempt-step-m 1] [--max-motion-m 30] [--keyframe-step 12] [--verbose]
 //                   [--sets neither,imu,gnss,both] [--orb-refine all|weak|off] [--start-frames F,F,...]
 //                   [--min-attempt-structure N] [--start-walk-m 8.5] [--matching exact|lsh]
-//                   [--targets whole|gathered]
+//                   [--targets whole|gathered] [--near-rivals keypoints|as-is]
 //  --start-frames: these revisit frames instead of --starts random ones, in every scene of --scenes
 //    (to rerun the starts a verbose log names: --scenes outdoor --start-frames f4678); frames past a
 //    scene's last usable start are refused before its prior is opened. The false check (outdoor
@@ -94,6 +94,9 @@ struct Options {
   // --targets whole|gathered: the whole prior's NDT targets built once (RelocalizerConfig::
   // whole_prior_targets, the default) or the prior points gathered and voxelised per hypothesis.
   std::string targets = "whole";
+  // --near-rivals keypoints|as-is: the geometric rivals near a weak fit judged by its keypoints
+  // (RelocalizerConfig::orb_judges_near_rivals, the default) or scored as they are.
+  std::string near_rivals = "keypoints";
 };
 
 // ---- sensor sets (paper Table IV columns) ----
@@ -406,14 +409,15 @@ core::Status run_start(const Options& o, Prior* prior, recon::Relocalizer* reloc
         std::printf(
             "      stages: appearance %.3f s (index %.3f), geometry %.3f s, NDT %.3f s; %d candidates, "
             "%d ranked, %d RANSAC hypotheses, %d seeds, %d NDT runs (%d from rival seeds), "
-            "%d ORB rival keyframes (%d rivals), target <= %lld points, %d structure points\n"
+            "%d ORB rival keyframes (%d rivals, %d near rivals refuted), target <= %lld points, %d structure "
+            "points\n"
             "      NDT and acceptance: coarse %.3f s, fine %.3f s, verify %.3f s, rivals %.3f s, margin %.3f "
             "s, "
             "polish %.3f s\n",
             r.appearance_s, r.index_s, r.geometry_s, r.ndt_s, n.candidates, n.appearance_ranked,
             n.ransac_hypotheses, n.fallback_seeds, n.ndt_runs, n.rival_seeds, n.orb_rival_tests, n.orb_rivals,
-            static_cast<long long>(n.target_points), r.structure_points, r.coarse_s, r.fine_s, r.verify_s,
-            r.rivals_s, r.margin_s, r.polish_s);
+            n.rivals_refuted_by_orb, static_cast<long long>(n.target_points), r.structure_points, r.coarse_s,
+            r.fine_s, r.verify_s, r.rivals_s, r.margin_s, r.polish_s);
       }
       if (o.verbose && !r.localized && r.best_fit_valid) {
         // The rejected best fit: was the rejection right?
@@ -552,6 +556,12 @@ int run_reloc(int argc, char** argv) {
         std::fprintf(stderr, "reloc: --targets takes whole or gathered\n");
         return 2;
       }
+    } else if (a == "--near-rivals") {
+      o.near_rivals = value("--near-rivals");
+      if (o.near_rivals != "keypoints" && o.near_rivals != "as-is") {
+        std::fprintf(stderr, "reloc: --near-rivals takes keypoints or as-is\n");
+        return 2;
+      }
     } else if (a == "--min-attempt-structure") {
       o.min_attempt_structure = std::atoi(value("--min-attempt-structure").c_str());
     } else if (a == "--orb-refine") {
@@ -583,13 +593,14 @@ int run_reloc(int argc, char** argv) {
         o.sets.push_back(s);
       }
     } else {
-      std::fprintf(stderr,
-                   "usage: hwr-bench reloc [--scenes lab,outdoor] [--starts N] [--quick] [--seed S]\n"
-                   "       [--prior-cache DIR] [--robot PATH] [--false-starts N] [--max-attempts N]\n"
-                   "       [--first-motion-m M] [--attempt-step-m M] [--max-motion-m M] [--keyframe-step N] "
-                   "[--verbose]\n       [--sets neither,imu,gnss,both] [--orb-refine all|weak|off] "
-                   "[--start-frames F,F,...]\n       [--min-attempt-structure N] [--start-walk-m M] "
-                   "[--matching exact|lsh]\n       [--targets whole|gathered]\n");
+      std::fprintf(
+          stderr,
+          "usage: hwr-bench reloc [--scenes lab,outdoor] [--starts N] [--quick] [--seed S]\n"
+          "       [--prior-cache DIR] [--robot PATH] [--false-starts N] [--max-attempts N]\n"
+          "       [--first-motion-m M] [--attempt-step-m M] [--max-motion-m M] [--keyframe-step N] "
+          "[--verbose]\n       [--sets neither,imu,gnss,both] [--orb-refine all|weak|off] "
+          "[--start-frames F,F,...]\n       [--min-attempt-structure N] [--start-walk-m M] "
+          "[--matching exact|lsh]\n       [--targets whole|gathered] [--near-rivals keypoints|as-is]\n");
       return a == "--help" || a == "-h" ? 0 : 2;
     }
   }
@@ -611,6 +622,7 @@ int run_reloc(int argc, char** argv) {
   if (o.min_attempt_structure >= 0) rcfg.min_attempt_structure_points = o.min_attempt_structure;
   rcfg.exact_matching = o.matching == "exact";
   rcfg.whole_prior_targets = o.targets == "whole";
+  rcfg.orb_judges_near_rivals = o.near_rivals == "keypoints";
   std::printf(
       "hwr-bench reloc: %d starts per scene (seed %llu), %d false starts (outdoor vs lab prior); attempts "
       "from %.1f m "
@@ -622,10 +634,11 @@ int run_reloc(int argc, char** argv) {
       "relocalizer: RelocalizerConfig defaults (top_k %d, min_votes %d, keep_best %d, min_inlier_ratio "
       "%.2f, min_score_margin %.2f, candidate_sigma_factor %.1f, ndt_fine down to %.2f m, attempts need %d "
       "structure points, %s "
-      "keyframe matching), ORB refinement %s\n",
+      "keyframe matching), ORB refinement %s, near rivals of weak fits %s\n",
       rcfg.top_k, rcfg.min_votes, rcfg.keep_best, rcfg.min_inlier_ratio, rcfg.min_score_margin,
       rcfg.candidate_sigma_factor, rcfg.ndt_fine.resolutions_m[1], rcfg.min_attempt_structure_points,
-      o.matching.c_str(), o.orb_refine.c_str());
+      o.matching.c_str(), o.orb_refine.c_str(),
+      o.near_rivals == "keypoints" ? "judged by keypoints" : "as they are");
 
   struct Scene {
     std::string name;

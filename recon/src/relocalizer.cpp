@@ -381,8 +381,10 @@ struct Relocalizer::Impl {
   // Step d': the current keyframe's ORB matches with the prior keyframes near the camera under
   // T_prior_world, gated there, and the pose-only fit on them (see RelocalizerConfig::orb_refine),
   // needing min_inliers correspondences, RANSAC inliers and fit inliers.
+  // gate_px: the reprojection gate at T_prior_world (orb_refine_gate_px when not given; infinity
+  // for a pose that may be a metre off: RANSAC then finds the consensus).
   OrbRefinement orb_refine(const Eigen::Isometry3d& T_prior_world, const RelocalizationQuery& q,
-                           const PriorMap& prior, int min_inliers);
+                           const PriorMap& prior, int min_inliers, double gate_px = -1.0);
   // Gathers the prior points about `center` into `target` unless the last gather covers it.
   // The current keyframe's ORB matches with prior keyframe kf (its keypoints with depth, moved to the
   // prior frame), then RANSAC: T_cam_world of the result is the current camera's pose in the prior
@@ -660,8 +662,9 @@ double Relocalizer::Impl::points_score(PriorMap* prior, const Eigen::Isometry3d&
 
 OrbRefinement Relocalizer::Impl::orb_refine(const Eigen::Isometry3d& T_prior_world,
                                             const RelocalizationQuery& q, const PriorMap& prior,
-                                            int min_inliers) {
+                                            int min_inliers, double gate_px) {
   OrbRefinement out;
+  if (!(gate_px >= 0)) gate_px = config.orb_refine_gate_px;
   const Eigen::Isometry3d T_prior_cam = T_prior_world * q.T_world_cam;
   const Eigen::Isometry3d T_cam_prior = T_prior_cam.inverse();
   // The prior keyframes nearest the fitted camera, looking the same way (the ORB seeds included:
@@ -684,8 +687,8 @@ OrbRefinement Relocalizer::Impl::orb_refine(const Eigen::Isometry3d& T_prior_wor
       const estimation::Feature& fc = q.features->feature(ci);
       if (!(fp.depth_m > 0)) continue;
       const Eigen::Vector3d p_prior = kf.T_prior_cam * fp.p_cam_m;
-      if (!reprojects(T_cam_prior, p_prior, fc, *q.features, config.orb_refine_gate_px,
-                      config.orb_refine_depth_frac)) {
+      if (std::isfinite(gate_px) &&
+          !reprojects(T_cam_prior, p_prior, fc, *q.features, gate_px, config.orb_refine_depth_frac)) {
         continue;
       }
       feature_used[static_cast<size_t>(ci)] = 1;
@@ -1743,7 +1746,7 @@ RelocalizationResult Relocalizer::relocalize(const RelocalizationQuery& q, Prior
   // rivals above) would slide along the weak direction wherever the ground pulls it. They are not
   // NDT results, so they do not count as evaluated rivals (margin_known).
   const bool structure_margin = m.n_structure >= cfg.min_structure_points;
-  const size_t first_orb_rival = m.rival_poses.size();
+  size_t first_orb_rival = m.rival_poses.size();
   if (cfg.orb_rival_keyframes > 0 && best->orb_refined && structure_margin) {
     const Eigen::Isometry3d T_prior_cam = T * q.T_world_cam;
     const Eigen::Vector3d axis = T_prior_cam.linear().col(2);
@@ -1774,6 +1777,42 @@ RelocalizationResult Relocalizer::relocalize(const RelocalizationQuery& q, Prior
       ++res.counters.orb_rivals;
       res.orb_rival_max_inliers = std::max(res.orb_rival_max_inliers, o.inliers);
       m.rival_poses.push_back(o.T_prior_world);
+    }
+  }
+  // The geometric rivals of a weak fit near it, judged by appearance. Along the direction the
+  // geometry leaves free NDT stops wherever the ground's pull ends (outdoor f5748, GNSS + IMU: a
+  // hypothesis 1.11 m / 0.86 deg from the fit scored 82 % of its structure score, margin 0.18), and
+  // the structure margin cannot tell such a pose from the fit; the keypoints can. When the prior
+  // keyframes near the fit, all their matches ungated, agree on the fit (RANSAC's consensus), a rival
+  // whose camera is within verify_radius_m (seen by those keyframes too) competes only where its own
+  // nearby keyframes, ungated, give a distinct pose with the ORB rivals' inlier minimum (it competes
+  // at that pose); otherwise appearance refutes it and it leaves the margin. Farther rivals are
+  // judged by the structure margin as they are (their places' keyframes may never have looked this
+  // way).
+  if (cfg.orb_judges_near_rivals && best->orb_refined && structure_margin && first_orb_rival > 0) {
+    const double ungated = std::numeric_limits<double>::infinity();
+    const int min_inliers =
+        std::max({6, cfg.min_orb_inliers,
+                  static_cast<int>(std::ceil(cfg.orb_rival_min_inlier_fraction * best->orb_refine_inliers))});
+    const OrbRefinement at_fit = m.orb_refine(T, q, *prior, min_inliers, ungated);
+    const Eigen::Vector3d p_prior_fit_cam = (T * q.T_world_cam).translation();
+    if (at_fit.pose_valid && !distinct(at_fit.T_prior_world)) {
+      size_t kept = 0;
+      for (size_t ri = 0; ri < m.rival_poses.size(); ++ri) {
+        Eigen::Isometry3d rival = m.rival_poses[ri];
+        if (ri < first_orb_rival &&
+            ((rival * q.T_world_cam).translation() - p_prior_fit_cam).norm() <= cfg.verify_radius_m) {
+          const OrbRefinement o = m.orb_refine(rival, q, *prior, min_inliers, ungated);
+          if (!o.pose_valid || !distinct(o.T_prior_world) || !gates_ok(o.T_prior_world)) {
+            ++res.counters.rivals_refuted_by_orb;
+            continue;
+          }
+          rival = o.T_prior_world;
+        }
+        m.rival_poses[kept++] = rival;
+      }
+      first_orb_rival -= m.rival_poses.size() - kept;  // every removed rival was before the ORB rivals
+      m.rival_poses.resize(kept);
     }
   }
   stage(&res.margin_s);
@@ -1919,6 +1958,10 @@ RelocalizationResult Relocalizer::relocalize(const RelocalizationQuery& q, Prior
                                     res.orb_refine_sigma_rad * kRadToDeg)
                            : std::string()) +
           (not_polished.empty() ? "" : " (not polished: " + not_polished + ")") +
+          (res.counters.rivals_refuted_by_orb > 0
+               ? format(" (%.0f rivals near the fit refuted by its keypoints)",
+                        res.counters.rivals_refuted_by_orb)
+               : std::string()) +
           (res.margin_known ? "" : " (no rival: the position and yaw priors pin the pose)"));
 }
 

@@ -79,7 +79,9 @@
 //     vote cluster), else from the best-voted candidate keyframe's pose away from the fit; for a weak
 //     fit (step d') also the ORB rivals: the poses that RANSAC and the ORB refinement give at the
 //     best-voted prior keyframes away from the fit (orb_rival_keyframes; along its weak direction
-//     the fit stands on appearance, which can repeat where the geometry does too). A
+//     the fit stands on appearance, which can repeat where the geometry does too); and for a weak
+//     fit the rivals within verify_radius_m of its camera are judged by the keypoints
+//     (orb_judges_near_rivals: one its own nearby keyframes do not support is refuted). A
 //     repeated place is found mainly through the hypotheses: with near-tie votes its copies' keyframes
 //     reach the top_k, RANSAC puts a hypothesis on each copy and the keep_best refinement scores them
 //     against each other (copies closer than verify_radius_m too, which the scan skips). Measured
@@ -349,6 +351,16 @@ struct RelocalizerConfig {
   int orb_rival_keyframes = 6;
   double orb_rival_spacing_m = 2.0;
   double orb_rival_min_inlier_fraction = 0.5;
+  // The geometric rivals near a weak fit, judged by its keypoints: when the prior keyframes near the
+  // fit, their matches ungated, agree on the fit (RANSAC), a hypothesis or rival seed whose camera is
+  // within verify_radius_m of the fitted camera stays in the structure margin only if the keyframes
+  // near its own camera, ungated, give a distinct pose the priors allow with
+  // orb_rival_min_inlier_fraction of the fit's inliers (it competes at that pose); otherwise its
+  // keypoints refute it (counters.rivals_refuted_by_orb). Along the weak direction NDT stops where
+  // the ground's pull ends, and there the structure margin cannot part that pose from the fit
+  // (outdoor f5748: 1.11 m off, margin 0.18). A copy within the radius keeps its own keyframes'
+  // support and still competes (test). false: every rival competes as it is.
+  bool orb_judges_near_rivals = true;
   // ORB verification of the best fit: of the verify_keyframes prior keyframes nearest its camera
   // (within verify_radius_m, optical axes within verify_max_angle_rad), one must have at least
   // min_verified_matches LSH matches with the current keyframe that its pose reprojects within
@@ -398,6 +410,7 @@ struct RelocalizationCounters {
   int rival_seeds = 0;        // step e: NDT runs from rival seeds (180 deg turn, second cluster, keyframe)
   int orb_rival_tests = 0;    // step e: prior keyframes matched for ORB rivals of a weak fit
   int orb_rivals = 0;         // ... that gave a distinct ORB-refined pose (a rival in the structure margin)
+  int rivals_refuted_by_orb = 0;  // step e: geometric rivals near a weak fit that its keypoints refute
 };
 
 struct RelocalizationResult {
