@@ -54,6 +54,16 @@ inline int normal_cluster(const Eigen::Vector3f& n) {
   return 2 * a + (n[a] < 0.0f ? 1 : 0);
 }
 
+// The 1-sigma of a ray's endpoint against the prior (header: margin and band): the range noise
+// sigma_z = k z^2 along the ray (|d| its length per unit z) and the pose's uncertainty at this range,
+// in quadrature.
+inline float endpoint_sigma_m(const FreeSpaceCarverConfig& c, float z, float d_norm) {
+  const float range_m = z * d_norm;
+  const float sigma_range_m = c.depth_noise_k * z * z * d_norm;
+  const float sigma_pose_m = c.pose_sigma_m + c.pose_sigma_rad * range_m;
+  return std::sqrt(sigma_range_m * sigma_range_m + sigma_pose_m * sigma_pose_m);
+}
+
 }  // namespace
 
 struct FreeSpaceCarver::Impl {
@@ -345,11 +355,7 @@ struct FreeSpaceCarver::Impl {
           ++stats.grazing;
           continue;
         }
-        // Range noise of the endpoint and the pose's uncertainty at this range, in quadrature.
-        const float range_m = z * d_norm;
-        const float sigma_range_m = c.depth_noise_k * z * z * d_norm;
-        const float sigma_pose_m = c.pose_sigma_m + c.pose_sigma_rad * range_m;
-        const float sigma_m = std::sqrt(sigma_range_m * sigma_range_m + sigma_pose_m * sigma_pose_m);
+        const float sigma_m = endpoint_sigma_m(c, z, d_norm);
         float margin = c.margin_min_m + c.k_sigma * sigma_m;
         rc.n = -(R * n_over_c).normalized();
         const int cluster = normal_cluster(rc.n);
@@ -504,11 +510,7 @@ struct FreeSpaceCarver::Impl {
       const float z = mp.z_m;
       if (!(z >= c.min_depth_m && z <= c.max_depth_m) || !(mp.cos_inc >= c.min_cos_incidence)) continue;
       const float d_norm = mp.d_cam.norm();
-      const float range_m = z * d_norm;
-      const float sigma_range_m = c.depth_noise_k * z * z * d_norm;
-      const float sigma_pose_m = c.pose_sigma_m + c.pose_sigma_rad * range_m;
-      const float sigma_m = std::sqrt(sigma_range_m * sigma_range_m + sigma_pose_m * sigma_pose_m);
-      rc.margin_m = c.margin_min_m + c.k_sigma * sigma_m;
+      rc.margin_m = c.margin_min_m + c.k_sigma * endpoint_sigma_m(c, z, d_norm);
       rc.n = R * mp.n_cam;
       const int cluster = normal_cluster(rc.n);
       rc.cluster = cluster;

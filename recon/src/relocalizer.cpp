@@ -1,6 +1,7 @@
 #include "hwr/recon/relocalizer.hpp"
 
 #include <algorithm>
+#include <cstddef>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -1747,13 +1748,14 @@ RelocalizationResult Relocalizer::relocalize(const RelocalizationQuery& q, Prior
   // NDT results, so they do not count as evaluated rivals (margin_known).
   const bool structure_margin = m.n_structure >= cfg.min_structure_points;
   size_t first_orb_rival = m.rival_poses.size();
+  // A distinct pose appearance supports with this share of the weak fit's inliers competes.
+  const int rival_min_inliers =
+      std::max({6, cfg.min_orb_inliers,
+                static_cast<int>(std::ceil(cfg.orb_rival_min_inlier_fraction * best->orb_refine_inliers))});
   if (cfg.orb_rival_keyframes > 0 && best->orb_refined && structure_margin) {
     const Eigen::Isometry3d T_prior_cam = T * q.T_world_cam;
     const Eigen::Vector3d axis = T_prior_cam.linear().col(2);
     const double min_cos = std::cos(cfg.verify_max_angle_rad);
-    const int min_inliers =
-        std::max({6, cfg.min_orb_inliers,
-                  static_cast<int>(std::ceil(cfg.orb_rival_min_inlier_fraction * best->orb_refine_inliers))});
     RelocalizationCounters geometry_only;  // step c's RANSAC counters stay step c's
     m.rival_places.clear();
     for (const auto& [votes, c] : m.ranked) {
@@ -1772,7 +1774,7 @@ RelocalizationResult Relocalizer::relocalize(const RelocalizationQuery& q, Prior
       if (!rr.ok) continue;
       const Eigen::Isometry3d T_seed = rr.T_cam_world.inverse() * q.T_world_cam.inverse();
       if (!distinct(T_seed) || !gates_ok(T_seed)) continue;
-      const OrbRefinement o = m.orb_refine(T_seed, q, *prior, min_inliers);
+      const OrbRefinement o = m.orb_refine(T_seed, q, *prior, rival_min_inliers);
       if (!o.pose_valid || !distinct(o.T_prior_world) || !gates_ok(o.T_prior_world)) continue;
       ++res.counters.orb_rivals;
       res.orb_rival_max_inliers = std::max(res.orb_rival_max_inliers, o.inliers);
@@ -1789,20 +1791,21 @@ RelocalizationResult Relocalizer::relocalize(const RelocalizationQuery& q, Prior
   // at that pose); otherwise appearance refutes it and it leaves the margin. Farther rivals are
   // judged by the structure margin as they are (their places' keyframes may never have looked this
   // way).
-  if (cfg.orb_judges_near_rivals && best->orb_refined && structure_margin && first_orb_rival > 0) {
+  const Eigen::Vector3d p_prior_fit_cam = (T * q.T_world_cam).translation();
+  auto near_fit = [&](const Eigen::Isometry3d& rival) {
+    return ((rival * q.T_world_cam).translation() - p_prior_fit_cam).norm() <= cfg.verify_radius_m;
+  };
+  if (cfg.orb_judges_near_rivals && best->orb_refined && structure_margin &&
+      std::any_of(m.rival_poses.begin(), m.rival_poses.begin() + static_cast<std::ptrdiff_t>(first_orb_rival),
+                  near_fit)) {
     const double ungated = std::numeric_limits<double>::infinity();
-    const int min_inliers =
-        std::max({6, cfg.min_orb_inliers,
-                  static_cast<int>(std::ceil(cfg.orb_rival_min_inlier_fraction * best->orb_refine_inliers))});
-    const OrbRefinement at_fit = m.orb_refine(T, q, *prior, min_inliers, ungated);
-    const Eigen::Vector3d p_prior_fit_cam = (T * q.T_world_cam).translation();
+    const OrbRefinement at_fit = m.orb_refine(T, q, *prior, rival_min_inliers, ungated);
     if (at_fit.pose_valid && !distinct(at_fit.T_prior_world)) {
       size_t kept = 0;
       for (size_t ri = 0; ri < m.rival_poses.size(); ++ri) {
         Eigen::Isometry3d rival = m.rival_poses[ri];
-        if (ri < first_orb_rival &&
-            ((rival * q.T_world_cam).translation() - p_prior_fit_cam).norm() <= cfg.verify_radius_m) {
-          const OrbRefinement o = m.orb_refine(rival, q, *prior, min_inliers, ungated);
+        if (ri < first_orb_rival && near_fit(rival)) {
+          const OrbRefinement o = m.orb_refine(rival, q, *prior, rival_min_inliers, ungated);
           if (!o.pose_valid || !distinct(o.T_prior_world) || !gates_ok(o.T_prior_world)) {
             ++res.counters.rivals_refuted_by_orb;
             continue;
