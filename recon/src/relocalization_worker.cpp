@@ -23,6 +23,9 @@ core::Expected<std::unique_ptr<RelocalizationWorker>> RelocalizationWorker::star
   if (config.update_prior && config.keyframe_slots < 1) {
     return core::InvalidArgument("relocalization: keyframe_slots must be >= 1");
   }
+  if (!(config.confirmation.agree_m > 0) || !(config.confirmation.agree_rad > 0)) {
+    return core::InvalidArgument("relocalization: confirmation agree_m and agree_rad must be positive");
+  }
   auto relocalizer = Relocalizer::create(config.relocalizer, K, max_features);
   if (!relocalizer.ok()) return relocalizer.status();
   std::unique_ptr<PriorMapUpdater> updater;
@@ -45,6 +48,7 @@ RelocalizationWorker::RelocalizationWorker(PriorMap prior, Relocalizer relocaliz
       config_(config),
       prior_(std::move(prior)),
       relocalizer_(std::move(relocalizer)),
+      confirmation_(config.confirmation),
       max_features_(max_features),
       features_(max_features, K.width, K.height),
       local_world_(static_cast<size_t>(config.max_local_points)),
@@ -272,13 +276,16 @@ void RelocalizationWorker::run() {
     q.yaw_prior_rad = priors_.yaw_prior_rad;
     q.yaw_sigma_rad = priors_.yaw_sigma_rad;
     const RelocalizationResult r = relocalizer_.relocalize(q, &prior_);
+    const ConfirmationVerdict verdict = confirmation_.offer(r, q);
+    const bool localized = verdict == ConfirmationVerdict::kAccepted;
     int attempt = 0;
-    if (r.localized) T_prior_world_ = r.T_prior_world;
+    if (localized) T_prior_world_ = confirmation_.accepted_T_prior_world();
     {
       std::lock_guard<std::mutex> lock(mutex_);
       attempt = ++status_.attempts;
       status_.wall_s_total += r.wall_s;
       status_.last_message = r.message;
+      if (r.localized && !localized) status_.last_message += " (pending: a later attempt must agree)";
       if (status_.log.size() < static_cast<size_t>(config_.max_attempts_logged)) {
         RelocalizationAttempt a;
         a.moved_m = moved_m_;
@@ -287,20 +294,24 @@ void RelocalizationWorker::run() {
         a.position_prior = q.position.valid;
         a.yaw_prior = q.yaw_valid;
         a.local_points = local_n_;
+        a.pending_confirmation = r.localized && verdict == ConfirmationVerdict::kPending;
         status_.log.push_back(a);
       }
-      if (r.localized) {
+      if (localized) {
         status_.localized = true;
-        status_.T_prior_world = r.T_prior_world;
+        status_.T_prior_world = T_prior_world_;
         status_.moved_at_localization_m = moved_m_;
         localized_.store(true, std::memory_order_release);  // T_prior_world_ is written above
       }
       busy_.store(false, std::memory_order_release);
     }
     idle_.notify_all();
-    HWR_LOG_INFO("reloc", "attempt %d at %.1f m moved (%d local points): %s", attempt, moved_m_, local_n_,
-                 r.message.c_str());
-    if (r.localized) {
+    HWR_LOG_INFO("reloc", "attempt %d at %.1f m moved (%d local points): %s%s", attempt, moved_m_, local_n_,
+                 r.message.c_str(),
+                 r.localized && !localized ? " (a weak fit without a position prior: pending until a later "
+                                             "attempt agrees)"
+                                           : "");
+    if (localized) {
       if (updater_ != nullptr) run_updates();
       return;
     }

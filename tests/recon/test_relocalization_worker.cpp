@@ -199,6 +199,42 @@ TEST(RelocalizationWorker, GivenQueriesFromOutsideThePriorThenNotLocalizedAndRet
   EXPECT_EQ(w->offers_taken(), 2u);
 }
 
+// A weak fit without a position prior waits for a later attempt that agrees
+// (relocalization_confirmation.hpp). Every fine NDT fit is judged degenerate here, so every fit is a
+// weak one (the pose from the ORB fit); the second attempt, from the same view, agrees with the first.
+TEST(RelocalizationWorker, GivenAWeakFitWithoutAPositionPriorThenALaterAttemptMustAgreeBeforeItIsLocalized) {
+  const Rendered& r = rendered();
+  RelocalizationWorkerConfig config;
+  config.first_attempt_m = 0.0;
+  config.retry_every_m = 0.5;
+  config.relocalizer.ndt_fine.degenerate_eigenvalue_ratio = 0.99;
+  auto w = start_worker(r, config);
+  w->wait_idle();
+  const RelocalizationPriors none;
+  const Eigen::Isometry3d I = Eigen::Isometry3d::Identity();
+  ASSERT_TRUE(w->offer(*r.features, r.T_world_cam, *r.local_map, I, 1.0, none));
+  w->wait_idle();
+  RelocalizationWorkerStatus s = w->status();
+  EXPECT_FALSE(w->localized()) << s.last_message;
+  ASSERT_EQ(s.log.size(), 1u);
+  EXPECT_EQ(s.log[0].reason, RelocalizationReason::kLocalized) << s.last_message;
+  EXPECT_TRUE(s.log[0].pending_confirmation);
+  EXPECT_NE(s.last_message.find("pending"), std::string::npos) << s.last_message;
+  EXPECT_NE(s.last_message.find("NDT weak"), std::string::npos) << s.last_message;
+
+  ASSERT_TRUE(w->offer(*r.features, r.T_world_cam, *r.local_map, I, 1.6, none));
+  w->wait_idle();
+  s = w->status();
+  ASSERT_TRUE(w->localized()) << s.last_message;
+  EXPECT_EQ(s.attempts, 2);
+  ASSERT_EQ(s.log.size(), 2u);
+  EXPECT_FALSE(s.log[1].pending_confirmation);
+  EXPECT_DOUBLE_EQ(s.moved_at_localization_m, 1.6);
+  const Eigen::Isometry3d d = known_T_prior_world().inverse() * w->T_prior_world();
+  EXPECT_LT(d.translation().norm(), 0.03);
+  EXPECT_LT(Eigen::AngleAxisd(d.linear()).angle(), 0.3 * kDeg);
+}
+
 TEST(RelocalizationWorker, GivenTheLocalMapInItsSegmentFrameThenOnlyPointsNearTheCameraAreSent) {
   const Rendered& r = rendered();
   RelocalizationWorkerConfig config;
@@ -246,6 +282,14 @@ TEST(RelocalizationWorker, GivenAnInvalidConfigThenStartFails) {
   auto w = RelocalizationWorker::start(std::move(prior.value()), config, r.K, kMaxFeatures);
   ASSERT_FALSE(w.ok());
   EXPECT_NE(w.status().message().find("max_local_points"), std::string::npos);
+
+  RelocalizationWorkerConfig no_agreement;
+  no_agreement.confirmation.agree_m = 0.0;
+  auto prior2 = PriorMap::open(r.prior_dir);
+  ASSERT_TRUE(prior2.ok());
+  auto w2 = RelocalizationWorker::start(std::move(prior2.value()), no_agreement, r.K, kMaxFeatures);
+  ASSERT_FALSE(w2.ok());
+  EXPECT_NE(w2.status().message().find("agree_m"), std::string::npos);
 }
 
 }  // namespace

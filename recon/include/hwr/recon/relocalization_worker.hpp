@@ -36,6 +36,7 @@
 #include "hwr/recon/keyframe_cloud.hpp"
 #include "hwr/recon/prior_map.hpp"
 #include "hwr/recon/prior_map_updater.hpp"
+#include "hwr/recon/relocalization_confirmation.hpp"
 #include "hwr/recon/relocalizer.hpp"
 #include "hwr/recon/voxel_map.hpp"
 
@@ -43,6 +44,9 @@ namespace hwr::recon {
 
 struct RelocalizationWorkerConfig {
   RelocalizerConfig relocalizer;
+  // A weak fit found without a position prior waits for a later attempt to agree
+  // (relocalization_confirmation.hpp).
+  RelocalizationConfirmationConfig confirmation;
   double first_attempt_m = 0.5;  // distance moved before the first attempt (the local map needs views)
   double retry_every_m = 0.5;    // after a failed attempt, this much more motion before the next
   // The local map sent with a query: the voxels within local_radius_m of the camera, every k-th one
@@ -83,6 +87,7 @@ struct RelocalizationAttempt {
   RelocalizationReason reason = RelocalizationReason::kNdtFailed;
   bool position_prior = false, yaw_prior = false;
   int local_points = 0;
+  bool pending_confirmation = false;  // a weak pose that waits for a later attempt to agree
 };
 
 struct RelocalizationWorkerStatus {
@@ -173,6 +178,7 @@ class RelocalizationWorker {
   RelocalizationWorkerConfig config_;
   PriorMap prior_;
   Relocalizer relocalizer_;
+  RelocalizationConfirmation confirmation_;  // worker thread
   int max_features_;
 
   // The query copy: written by offer() only while !busy_, read by the worker only while busy_.

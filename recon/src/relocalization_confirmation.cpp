@@ -1,0 +1,55 @@
+#include "hwr/recon/relocalization_confirmation.hpp"
+
+namespace hwr::recon {
+
+const char* confirmation_verdict_name(ConfirmationVerdict v) {
+  switch (v) {
+    case ConfirmationVerdict::kNotLocalized:
+      return "not localized";
+    case ConfirmationVerdict::kPending:
+      return "pending confirmation";
+    case ConfirmationVerdict::kAccepted:
+      return "accepted";
+  }
+  return "?";
+}
+
+RelocalizationConfirmation::RelocalizationConfirmation(const RelocalizationConfirmationConfig& config)
+    : config_(config) {}
+
+void RelocalizationConfirmation::reset() {
+  accepted_ = pending_ = false;
+  accepted_T_ = pending_T_ = Eigen::Isometry3d::Identity();
+  superseded_ = 0;
+}
+
+bool RelocalizationConfirmation::agree(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b,
+                                       const Eigen::Isometry3d& T_world_cam) const {
+  const double d_m = ((a * T_world_cam).translation() - (b * T_world_cam).translation()).norm();
+  const double d_rad = Eigen::AngleAxisd(a.linear().transpose() * b.linear()).angle();
+  return d_m <= config_.agree_m && d_rad <= config_.agree_rad;
+}
+
+ConfirmationVerdict RelocalizationConfirmation::offer(const RelocalizationResult& result,
+                                                      const RelocalizationQuery& query) {
+  if (accepted_) return ConfirmationVerdict::kAccepted;
+  if (!result.localized) return pending_ ? ConfirmationVerdict::kPending : ConfirmationVerdict::kNotLocalized;
+  const bool needs_confirmation =
+      config_.confirm_weak_without_position && result.orb_refined_weak && !query.position.valid;
+  const bool confirms = pending_ && agree(pending_T_, result.T_prior_world, query.T_world_cam);
+  if (confirms || !needs_confirmation) {
+    accepted_ = true;
+    // Of two that agree, an ORB pose-only fit (the pending weak one, or a polished later one) over an
+    // NDT pose the polish did not refine: outdoor f4609 (seed 2) held a weak fit 0.20 cm from the
+    // truth, and the later fit that confirmed it was an unpolished NDT one 4.5 cm off.
+    accepted_T_ = confirms && !result.orb_refined ? pending_T_ : result.T_prior_world;
+    pending_ = false;
+    return ConfirmationVerdict::kAccepted;
+  }
+  if (pending_) ++superseded_;
+  pending_ = true;
+  pending_T_ = result.T_prior_world;
+  return ConfirmationVerdict::kPending;
+}
+
+}  // namespace hwr::recon
