@@ -53,12 +53,14 @@ TEST(RelocalizationConfirmation, GivenAFitThatIsNotWeakOrHasAPositionPriorThenIt
   EXPECT_TRUE(c.accepted_T_prior_world().isApprox(kTrue));
 
   RelocalizationConfirmation with_gnss;
-  EXPECT_EQ(with_gnss.offer(localized(kTrue, true), query_at({1, 0, 0}, true)), ConfirmationVerdict::kAccepted);
+  EXPECT_EQ(with_gnss.offer(localized(kTrue, true), query_at({1, 0, 0}, true)),
+            ConfirmationVerdict::kAccepted);
 
   RelocalizationConfirmationConfig off;
   off.confirm_weak_without_position = false;
   RelocalizationConfirmation at_once(off);
-  EXPECT_EQ(at_once.offer(localized(kRepeat, true), query_at({1, 0, 0}, false)), ConfirmationVerdict::kAccepted);
+  EXPECT_EQ(at_once.offer(localized(kRepeat, true), query_at({1, 0, 0}, false)),
+            ConfirmationVerdict::kAccepted);
 }
 
 TEST(RelocalizationConfirmation, GivenAWeakFitWithoutAPositionPriorThenALaterAttemptMustAgree) {
@@ -88,7 +90,8 @@ TEST(RelocalizationConfirmation, GivenAWeakFitWithoutAPositionPriorThenALaterAtt
   EXPECT_EQ(c.superseded(), 0);
 }
 
-TEST(RelocalizationConfirmation, GivenAPendingWeakFitAndALaterFitThatNeedsNoConfirmationThenTheLaterOneIsAccepted) {
+TEST(RelocalizationConfirmation,
+     GivenAPendingWeakFitAndALaterFitThatNeedsNoConfirmationThenTheLaterOneIsAccepted) {
   RelocalizationConfirmation c;
   EXPECT_EQ(c.offer(localized(kRepeat, true), query_at({2, 0, 0}, false)), ConfirmationVerdict::kPending);
   EXPECT_EQ(c.offer(localized(kTrue, false), query_at({3, 0, 0}, false)), ConfirmationVerdict::kAccepted);

@@ -56,7 +56,8 @@ class RelocalizationConfirmation {
   // Pending poses a later one replaced (it disagreed): each was a weak fit that no attempt confirmed.
   int superseded() const { return superseded_; }
   // Whether two T_prior_world agree at the camera T_world_cam (config's agree_m, agree_rad).
-  bool agree(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b, const Eigen::Isometry3d& T_world_cam) const;
+  bool agree(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b,
+             const Eigen::Isometry3d& T_world_cam) const;
 
  private:
   RelocalizationConfirmationConfig config_;
