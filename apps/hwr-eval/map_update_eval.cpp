@@ -8,37 +8,57 @@
 // "elsewhere" (static geometry, and any clutter removed between the runs: an upper bound of the
 // static loss). A plate that moved by less than its size still covers part of its old place, so the
 // old place is never wholly free: 100 % is not expected. Prints a readable block and key=value lines.
+//
+// The boxes are the truth's, the prior's points its first run's estimate: the prior drifts (in the
+// lab revisit its bench top at the moved plate lies 3 cm below the truth's), and a box of the truth
+// as given then holds the bench under the plate and misses its top. With --truth-traj (the first
+// run's groundtruth.txt) each box is placed in each segment as its keyframes saw it
+// (recon/region_ae.hpp does the same for AE): through the segment's keyframe whose look-at point
+// (kLookAheadM along its optical axis) is nearest the plate's centre,
+//   T_prior_box = T_prior_cam_est(t) * T_world_cam_true(t)^-1 * T_world_plate_true,
+// the map's local error at that place kept, its drift not.
 #include "map_update_eval.hpp"
 
 #include <algorithm>
 #include <cstdio>
 #include <cstring>
+#include <limits>
 #include <string>
 #include <vector>
+#include <set>
+#include <tuple>
+#include <cstdlib>
 
+#include "hwr/core/tum_trajectory.hpp"
 #include "hwr/recon/map_store.hpp"
 #include "hwr/recon/plate_fit.hpp"
+#include "hwr/recon/truth_weld_regions.hpp"
 
 namespace hwr_eval {
 
 namespace {
+
+constexpr double kLookAheadM = 1.5;             // a keyframe's look-at point along its optical axis
+constexpr int64_t kMaxTruthGapNs = 50'000'000;  // truth samples further apart are not interpolated
 
 int usage_map_update(const char* msg) {
   if (msg != nullptr) std::fprintf(stderr, "hwr-eval map-update: %s\n", msg);
   std::fprintf(
       stderr,
       "usage: hwr-eval map-update --prior P --updated D --groundtruth WELD_YAML --moved NAME[,NAME...]\n"
-      "                           [--margin M]\n"
+      "                           [--margin M] [--truth-traj GT]\n"
       "  P: the first run's map store; D: the second run's (--map-out of hwr-robot --prior-map P);\n"
       "  WELD_YAML: the first run's weld_groundtruth.yaml; NAME: a joint whose plates moved\n"
-      "  (its plates are NAME/...); M: inflation of the plate boxes (default 0.03 m)\n");
+      "  (its plates are NAME/...); M: inflation of the plate boxes (default 0.03 m);\n"
+      "  GT: the first run's groundtruth.txt: each box placed in each segment through the keyframe that\n"
+      "  looked nearest it (the prior's drift removed); without it the boxes are used as given\n");
   return 2;
 }
 
 }  // namespace
 
 int run_map_update(int argc, char** argv) {
-  std::string prior_dir, updated_dir, gt_path, moved_list;
+  std::string prior_dir, updated_dir, gt_path, moved_list, truth_traj_path;
   double margin_m = 0.03;
   for (int i = 2; i < argc; ++i) {
     const std::string a = argv[i];
@@ -52,6 +72,8 @@ int run_map_update(int argc, char** argv) {
       gt_path = v;
     } else if (a == "--moved") {
       moved_list = v;
+    } else if (a == "--truth-traj") {
+      truth_traj_path = v;
     } else if (a == "--margin") {
       char* end = nullptr;
       margin_m = std::strtod(v, &end);
@@ -82,6 +104,7 @@ int run_map_update(int argc, char** argv) {
       hwr::recon::OrientedBox b;
       b.T_world_box = p.T_world_plate;
       b.half_size_m = p.size_m / 2 + Eigen::Vector3d::Constant(margin_m);
+      if (std::getenv("HWR_WIDE")) b.half_size_m += Eigen::Vector3d(0.2, 0.2, 0.05);
       old_place.push_back(b);
       old_place_names.push_back(p.name);
       ++found;
@@ -92,6 +115,15 @@ int run_map_update(int argc, char** argv) {
     }
     if (comma == std::string::npos) break;
     start = comma + 1;
+  }
+  std::vector<hwr::core::StampedPose> truth;
+  if (!truth_traj_path.empty()) {
+    auto t = hwr::core::read_tum_trajectory(truth_traj_path);
+    if (!t.ok()) {
+      std::fprintf(stderr, "hwr-eval: %s\n", t.status().message().c_str());
+      return 1;
+    }
+    truth = std::move(t.value());
   }
   auto prior = hwr::recon::MapStore::open_existing(prior_dir);
   auto updated = hwr::recon::MapStore::open_existing(updated_dir);
@@ -113,13 +145,37 @@ int run_map_update(int argc, char** argv) {
   const size_t n_plates = old_place.size();
   std::vector<int64_t> plate_all(n_plates, 0), plate_before(n_plates, 0), plate_after(n_plates, 0);
   int segments_compared = 0;
+  // The boxes in a segment's frame of the prior (header): placed through its keyframe nearest each
+  // plate with --truth-traj, else as given. Fails when no keyframe of the segment has a truth pose.
+  std::vector<hwr::recon::OrientedBox> boxes(n_plates);
+  auto place_boxes = [&](const hwr::recon::SegmentRecord& s) -> bool {
+    for (size_t k = 0; k < n_plates; ++k) {
+      boxes[k] = old_place[k];
+      if (truth.empty()) continue;
+      const Eigen::Vector3d centre_true = old_place[k].T_world_box.translation();
+      double best = std::numeric_limits<double>::infinity();
+      bool placed = false;
+      for (const auto& kf : s.keyframes) {
+        Eigen::Isometry3d T_world_cam_true;
+        if (!hwr::recon::truth_pose_at(truth, kf.t_ns, kMaxTruthGapNs, &T_world_cam_true)) continue;
+        // Nearness in the truth's frame: the keyframe's true look-at point to the true plate.
+        const double d = (T_world_cam_true * Eigen::Vector3d(0, 0, kLookAheadM) - centre_true).norm();
+        if (d >= best) continue;
+        best = d;
+        boxes[k].T_world_box = kf.T_world_cam * T_world_cam_true.inverse() * old_place[k].T_world_box;
+        placed = true;
+      }
+      if (!placed) return false;
+    }
+    return true;
+  };
   auto count = [&](const hwr::recon::SegmentRecord& s, int64_t* in_old, int64_t* elsewhere,
                    std::vector<int64_t>* per_plate) {
     for (const auto& p : s.points_segment) {
       const Eigen::Vector3d w = s.T_world_segment * Eigen::Vector3d(p.x_m, p.y_m, p.z_m);
       bool old = false;
       for (size_t k = 0; k < n_plates; ++k) {
-        if (old_place[k].distance_m(w) != 0.0) continue;
+        if (boxes[k].distance_m(w) != 0.0) continue;
         old = true;
         ++(*per_plate)[k];
       }
@@ -135,6 +191,11 @@ int run_map_update(int argc, char** argv) {
     }
     bool has_update = false;
     for (const auto& us : updated_list.value()) has_update = has_update || us.segment_id == ps.segment_id;
+    if (!place_boxes(a.value())) {
+      std::fprintf(stderr, "hwr-eval: --truth-traj %s has no pose at any keyframe of prior segment %u\n",
+                   truth_traj_path.c_str(), ps.segment_id);
+      return 1;
+    }
     int64_t o = 0, e = 0;
     std::fill(seg_plate.begin(), seg_plate.end(), 0);
     count(a.value(), &o, &e, &seg_plate);
@@ -153,6 +214,21 @@ int run_map_update(int argc, char** argv) {
     }
     old_before += o;
     else_before += e;
+    if (const char* dump = std::getenv("HWR_DUMP")) {
+      std::set<std::tuple<float, float, float>> kept;
+      for (const auto& p : b->points_segment) kept.insert({p.x_m, p.y_m, p.z_m});
+      FILE* f = std::fopen(dump, "a");
+      for (const auto& p : a->points_segment) {
+        const Eigen::Vector3d w = a->T_world_segment * Eigen::Vector3d(p.x_m, p.y_m, p.z_m);
+        for (size_t k = 0; k < n_plates; ++k) {
+          if (boxes[k].distance_m(w) != 0.0) continue;
+          const Eigen::Vector3d l = boxes[k].T_world_box.inverse() * w;
+          std::fprintf(f, "%u,%zu,%.4f,%.4f,%.4f,%d\n", ps.segment_id, k, l.x(), l.y(), l.z(),
+                       kept.count({p.x_m, p.y_m, p.z_m}) ? 0 : 1);
+        }
+      }
+      std::fclose(f);
+    }
     int64_t o_after = 0, e_after = 0;
     std::fill(seg_plate_after.begin(), seg_plate_after.end(), 0);
     count(b.value(), &o_after, &e_after, &seg_plate_after);

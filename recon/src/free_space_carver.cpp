@@ -98,6 +98,10 @@ struct FreeSpaceCarver::Impl {
     bool per_ray = false;
     float nearest_s = 0, band_sum_s = 0;
     int band_n = 0;
+    // ... and each near ray's endpoint and residual for the trend test (Impl::check_rays; rays beyond
+    // its capacity enter the histogram only).
+    CheckRay* ray_log = nullptr;
+    int ray_log_capacity = 0, ray_log_n = 0;
     std::array<int, kNormalClusters> near_rays{}, far_rays{};
     std::array<int64_t, kNormalClusters> surface_pairs{};
     std::array<double, kNormalClusters> margin_sum_m{};  // of those pairs' free margins
@@ -114,7 +118,8 @@ struct FreeSpaceCarver::Impl {
   int n = 0;
   RTCDevice device = nullptr;
   RTCScene scene = nullptr;
-  std::vector<float> spheres;  // x y z radius per point, +1 element of padding (Embree's SSE loads)
+  std::vector<CheckRay> check_rays;  // the check on planes' near rays (max_check_rays, sized at create())
+  std::vector<float> spheres;        // x y z radius per point, +1 element of padding (Embree's SSE loads)
   std::vector<uint32_t> stamps;
   std::vector<uint16_t> free_hits, occupied_hits;
   uint32_t ray_id = 0;
@@ -276,6 +281,7 @@ struct FreeSpaceCarver::Impl {
       ++rc->near_rays[k];
       if (rc->per_ray) {
         const float r = rc->band_n > 0 ? rc->band_sum_s / static_cast<float>(rc->band_n) : rc->nearest_s;
+        if (rc->ray_log_n < rc->ray_log_capacity) rc->ray_log[rc->ray_log_n++] = {rc->q, r, cluster};
         const int bin = static_cast<int>((r + rc->bias_window_m) / (2.0f * rc->bias_window_m) * kBiasBins);
         ++rc->bias_hist[k][static_cast<size_t>(std::clamp(bin, 0, kBiasBins - 1))];
         ++rc->surface_pairs[k];
@@ -297,6 +303,45 @@ struct FreeSpaceCarver::Impl {
       ++bin;
     }
     return (2.0f * (static_cast<float>(bin) + 0.5f) / kBiasBins - 1.0f) * window_m;
+  }
+
+  // The trend test on measured planes (header): least squares of the near rays' residuals r of
+  // cluster k over their endpoints' two coordinates across the cluster's axis, r = a + g·(x − x̄),
+  // rays further than 2 IQRs from the median left out (changed geometry). trend_m = |g| times the
+  // rays' RMS distance from their centroid, its standard error from the fit's residuals. Returns
+  // false (no trend measured) with fewer than 8 rays or a degenerate spread.
+  static bool residual_trend(const RayContext& rc, int k, float median_m, float iqr_m, float* trend_m,
+                             float* trend_se_m) {
+    const int axis = k / 2;  // +x -x +y -y +z -z
+    const int a0 = (axis + 1) % 3, a1 = (axis + 2) % 3;
+    const float keep_m = 2.0f * std::max(iqr_m, 2.0f * rc.bias_window_m / kBiasBins);
+    Eigen::Matrix<double, 6, 1> sums = Eigen::Matrix<double, 6, 1>::Zero();  // n, Σu, Σv, Σr
+    Eigen::Matrix3d uvr2 = Eigen::Matrix3d::Zero();                          // Σ [u v r][u v r]ᵀ
+    for (int i = 0; i < rc.ray_log_n; ++i) {
+      const CheckRay& cr = rc.ray_log[i];
+      if (cr.cluster != k || std::abs(cr.r_m - median_m) > keep_m) continue;
+      const Eigen::Vector3d x(cr.q_prior[a0], cr.q_prior[a1], cr.r_m);
+      sums[0] += 1.0;
+      sums.segment<3>(1) += x;
+      uvr2 += x * x.transpose();
+    }
+    const double n = sums[0];
+    if (n < 8) return false;
+    const Eigen::Vector3d mean = sums.segment<3>(1) / n;
+    const Eigen::Matrix3d C = uvr2 - n * mean * mean.transpose();  // centred scatter
+    const Eigen::Matrix2d S = C.topLeftCorner<2, 2>();
+    const Eigen::Vector2d b = C.topRightCorner<2, 1>();
+    if (!(S.determinant() > 1e-12 * S.trace() * S.trace()) || !(S.trace() > 0)) return false;
+    const Eigen::Matrix2d S_inv = S.inverse();
+    const Eigen::Vector2d g = S_inv * b;
+    const double rss = std::max(0.0, C(2, 2) - b.dot(g));
+    const double sigma2 = rss / (n - 3.0);
+    const double radius = std::sqrt(S.trace() / n);
+    const double g_norm = g.norm();
+    const Eigen::Vector2d dir = g_norm > 0 ? Eigen::Vector2d(g / g_norm) : Eigen::Vector2d(1, 0);
+    *trend_m = static_cast<float>(g_norm * radius);
+    *trend_se_m = static_cast<float>(radius * std::sqrt(sigma2 * dir.dot(S_inv * dir)));
+    return true;
   }
 
   // Casts every stride_px-th pixel's ray (header). kCheck measures only the pose check's near / far
@@ -505,6 +550,9 @@ struct FreeSpaceCarver::Impl {
     rc.pass = Pass::kCheck;
     rc.per_ray = true;
     rc.bias_window_m = c.bias_window_m;
+    rc.ray_log = check_rays.data();
+    rc.ray_log_capacity = static_cast<int>(check_rays.size());
+    rc.ray_log_n = 0;
     for (int i = 0; i < n_planes; ++i) {
       const MeasuredPlane& mp = planes[i];
       const float z = mp.z_m;
@@ -564,6 +612,14 @@ core::Expected<FreeSpaceCarver> FreeSpaceCarver::create(const FreeSpaceCarverCon
         "planarity_sigmas, planarity_rel, free_ratio and spread_margin_iqrs must be finite and >= 0, and "
         "0 <= k_sigma_occupied <= k_sigma");
   }
+  if (!(std::isfinite(c.max_iqr_to_margin_trend) && c.max_iqr_to_margin_trend > 0)) {
+    return core::InvalidArgument("free-space carver: max_iqr_to_margin_trend must be positive (got " +
+                                 std::to_string(c.max_iqr_to_margin_trend) + ")");
+  }
+  if (c.max_check_rays < 0) {
+    return core::InvalidArgument("free-space carver: max_check_rays must be >= 0 (got " +
+                                 std::to_string(c.max_check_rays) + ")");
+  }
   if (!(c.min_cos_incidence > 0.0f && c.min_cos_incidence <= 1.0f)) {
     return core::InvalidArgument("free-space carver: min_cos_incidence must be in (0, 1] (got " +
                                  std::to_string(c.min_cos_incidence) + ")");
@@ -606,6 +662,7 @@ core::Expected<FreeSpaceCarver> FreeSpaceCarver::create(const FreeSpaceCarverCon
   const size_t cap = static_cast<size_t>(max_points);
   impl->spheres.assign(4 * (cap + 1), 0.0f);
   impl->stamps.assign(cap, 0);
+  impl->check_rays.resize(static_cast<size_t>(c.max_check_rays));
   impl->free_hits.assign(cap, 0);
   impl->occupied_hits.assign(cap, 0);
   return FreeSpaceCarver(std::move(impl));
@@ -795,8 +852,18 @@ core::Expected<FreeSpaceObserveStats> FreeSpaceCarver::observe(
       const float median_se_m =
           0.929f * cl.iqr_m / std::sqrt(static_cast<float>(std::max<int64_t>(cl.pairs, 1)));
       const float max_bias_m = std::max(c.max_surface_bias_m, c.median_sigmas * median_se_m);
+      // A rotation: the residuals' spread (the sparse pass), or on measured planes with the trend
+      // test their tilt across the cluster (header), which a thick prior does not have.
+      bool rotation_ok = cl.iqr_m <= c.max_iqr_to_margin * cl.margin_m;
+      if (check_planes != nullptr && c.trend_check_on_planes) {
+        float se_m = 0;
+        cl.trend_measured = Impl::residual_trend(check, k, cl.median_m, cl.iqr_m, &cl.trend_m, &se_m);
+        cl.trend_limit_m = c.max_surface_bias_m + c.median_sigmas * se_m;
+        rotation_ok = cl.trend_measured && cl.trend_m <= cl.trend_limit_m &&
+                      cl.iqr_m <= c.max_iqr_to_margin_trend * cl.margin_m;
+      }
       cl.passed = static_cast<float>(cl.near_rays) >= c.min_near_fraction * static_cast<float>(checkable) &&
-                  std::abs(cl.median_m) <= max_bias_m && cl.iqr_m <= c.max_iqr_to_margin * cl.margin_m;
+                  std::abs(cl.median_m) <= max_bias_m && rotation_ok;
       any_failed = any_failed || !cl.passed;
       if (cl.passed) stats.surface_pairs += cl.pairs;
       rc.cluster_votes[kk] = cl.passed;

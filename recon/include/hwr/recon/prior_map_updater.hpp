@@ -84,12 +84,12 @@ struct PriorMapUpdaterConfig {
     return c;
   }();
   int carve_stride_px = 2;  // every 2nd pixel in u and v (rays <= 2 point radii apart at ~2 m)
-  // Segments held with their carver. 4 was tried on the lab revisit (its moved plate lies in 4 prior
-  // segments: two passes of the first run): the fourth was mostly one that overlaps the view little,
-  // 71 % of the views failed the pose check (62 % with 3), more keyframes were dropped, and less of the
-  // old place was deleted (17-20 % against 23-33 %). With the ranking by view samples and the pose per
-  // segment, 4 deleted less again in the replay (34 against 56 %; not understood, docs).
-  int max_open_segments = 3;
+  // Segments held with their carver. The lab revisit's moved plate lies in 4 prior segments (two
+  // passes of the first run). With the pose check's IQR test, 4 deleted less than 3 (the fourth was
+  // one whose prior is thick there, and every one of its views failed the check); with the trend test
+  // (FreeSpaceCarverConfig::trend_check_on_planes) the fourth carves: 54.7 / 56.7 % of the old place
+  // against 47.7 / 47.9 % with 3, 46.0 % with 5 (10 keyframes dropped; docs/prior_map_update.md).
+  int max_open_segments = 4;
   // Which segments a keyframe opens first (step 1), after the view samples: those with a keyframe whose
   // look-at point (this far along its optical axis, about the middle of the carving range) is nearest
   // this camera's.
