@@ -26,7 +26,7 @@
 //                   [--attempt-step-m 1] [--max-motion-m 30] [--keyframe-step 12] [--verbose]
 //                   [--sets neither,imu,gnss,both] [--orb-refine all|weak|off] [--start-frames F,F,...]
 //                   [--min-attempt-structure N] [--start-walk-m 8.5] [--matching exact|lsh]
-//                   [--targets whole|gathered] [--near-rivals keypoints|as-is] [--confirm weak|off]
+//                   [--targets whole|gathered] [--near-rivals keypoints|as-is] [--confirm all|weak|off]
 //  --start-frames: these revisit frames instead of --starts random ones, in every scene of --scenes
 //    (to rerun the starts a verbose log names: --scenes outdoor --start-frames f4678); frames past a
 //    scene's last usable start are refused before its prior is opened. The false check (outdoor
@@ -98,9 +98,10 @@ struct Options {
   // --near-rivals keypoints|as-is: the geometric rivals near a weak fit judged by its keypoints
   // (RelocalizerConfig::orb_judges_near_rivals, the default) or scored as they are.
   std::string near_rivals = "keypoints";
-  // --confirm weak|off: a weak fit without a position prior is accepted only when a later attempt
-  // agrees (relocalization_confirmation.hpp, as the robot's worker does) or at once.
-  std::string confirm = "weak";
+  // --confirm all|weak|off: a weak fit without a position prior and (all) a fit whose ORB polish was
+  // refused are accepted only when a later attempt agrees (relocalization_confirmation.hpp, as the
+  // robot's worker does), or (off) at once.
+  std::string confirm = "all";
 };
 
 // ---- sensor sets (paper Table IV columns) ----
@@ -459,10 +460,9 @@ core::Status run_start(const Options& o, Prior* prior, recon::Relocalizer* reloc
         ++s.rec.pending_fits;
         if (classify(true, e) == Outcome::kFalse) ++s.rec.pending_wrong;
         if (o.verbose) {
-          std::printf(
-              "      pending confirmation (a weak fit without a position prior): error local %.2f cm %.3f "
-              "deg\n",
-              e.cm, e.deg);
+          std::printf("      pending confirmation (%s): error local %.2f cm %.3f deg\n",
+                      r.polish_refused ? "its ORB polish was refused" : "a weak fit without a position prior",
+                      e.cm, e.deg);
         }
       }
       if (verdict == recon::ConfirmationVerdict::kAccepted) {
@@ -584,8 +584,8 @@ int run_reloc(int argc, char** argv) {
       }
     } else if (a == "--confirm") {
       o.confirm = value("--confirm");
-      if (o.confirm != "weak" && o.confirm != "off") {
-        std::fprintf(stderr, "reloc: --confirm takes weak or off\n");
+      if (o.confirm != "all" && o.confirm != "weak" && o.confirm != "off") {
+        std::fprintf(stderr, "reloc: --confirm takes all, weak or off\n");
         return 2;
       }
     } else if (a == "--min-attempt-structure") {
@@ -627,7 +627,7 @@ int run_reloc(int argc, char** argv) {
           "[--verbose]\n       [--sets neither,imu,gnss,both] [--orb-refine all|weak|off] "
           "[--start-frames F,F,...]\n       [--min-attempt-structure N] [--start-walk-m M] "
           "[--matching exact|lsh]\n       [--targets whole|gathered] [--near-rivals keypoints|as-is]\n"
-          "       [--confirm weak|off]\n");
+          "       [--confirm all|weak|off]\n");
       return a == "--help" || a == "-h" ? 0 : 2;
     }
   }
@@ -651,7 +651,8 @@ int run_reloc(int argc, char** argv) {
   rcfg.whole_prior_targets = o.targets == "whole";
   rcfg.orb_judges_near_rivals = o.near_rivals == "keypoints";
   recon::RelocalizationConfirmationConfig confirm_cfg;
-  confirm_cfg.confirm_weak_without_position = o.confirm == "weak";
+  confirm_cfg.confirm_weak_without_position = o.confirm != "off";
+  confirm_cfg.confirm_unpolished = o.confirm == "all";
   std::printf(
       "hwr-bench reloc: %d starts per scene (seed %llu), %d false starts (outdoor vs lab prior); attempts "
       "from %.1f m "
@@ -664,12 +665,13 @@ int run_reloc(int argc, char** argv) {
       "%.2f, min_score_margin %.2f, candidate_sigma_factor %.1f, ndt_fine down to %.2f m, attempts need %d "
       "structure points, %s "
       "keyframe matching), ORB refinement %s, near rivals of weak fits %s, weak fits without a position "
-      "prior %s\n",
+      "prior%s %s\n",
       rcfg.top_k, rcfg.min_votes, rcfg.keep_best, rcfg.min_inlier_ratio, rcfg.min_score_margin,
       rcfg.candidate_sigma_factor, rcfg.ndt_fine.resolutions_m[1], rcfg.min_attempt_structure_points,
       o.matching.c_str(), o.orb_refine.c_str(),
       o.near_rivals == "keypoints" ? "judged by keypoints" : "as they are",
-      o.confirm == "weak" ? "confirmed by a later attempt" : "accepted at once");
+      o.confirm == "all" ? " and fits with a refused polish" : "",
+      o.confirm != "off" ? "confirmed by a later attempt" : "accepted at once");
 
   struct Scene {
     std::string name;
@@ -953,8 +955,10 @@ int run_reloc(int argc, char** argv) {
     for (const auto& [k, c] : r->prior_notes) std::printf(" %s x%d;", k.c_str(), c);
     std::printf("\n%-22s attempt results:", "");
     for (const auto& [k, c] : r->attempt_reasons) std::printf(" %s %d;", k.c_str(), c);
-    std::printf("\n%-22s weak fits without a position prior held for confirmation: %d, %d of them wrong\n",
-                "", n_pending, n_pending_wrong);
+    std::printf(
+        "\n%-22s fits held for confirmation (weak without a position prior, or polish refused): %d, %d of "
+        "them wrong\n",
+        "", n_pending, n_pending_wrong);
     pending_rows += n_pending;
     pending_wrong_rows += n_pending_wrong;
     min_success = std::min(min_success, success_pct);

@@ -20,7 +20,13 @@ RelocalizationConfirmation::RelocalizationConfirmation(const RelocalizationConfi
 void RelocalizationConfirmation::reset() {
   accepted_ = pending_ = false;
   accepted_T_ = pending_T_ = Eigen::Isometry3d::Identity();
+  pending_support_ = 0;
   superseded_ = 0;
+}
+
+int RelocalizationConfirmation::support(const RelocalizationResult& result) {
+  if (result.orb_refined) return 2;
+  return result.polish_refused ? 0 : 1;
 }
 
 bool RelocalizationConfirmation::agree(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b,
@@ -34,21 +40,23 @@ ConfirmationVerdict RelocalizationConfirmation::offer(const RelocalizationResult
                                                       const RelocalizationQuery& query) {
   if (accepted_) return ConfirmationVerdict::kAccepted;
   if (!result.localized) return pending_ ? ConfirmationVerdict::kPending : ConfirmationVerdict::kNotLocalized;
+  const int result_support = support(result);
   const bool needs_confirmation =
-      config_.confirm_weak_without_position && result.orb_refined_weak && !query.position.valid;
+      (config_.confirm_weak_without_position && result.orb_refined_weak && !query.position.valid) ||
+      (config_.confirm_unpolished && result_support == 0);
   const bool confirms = pending_ && agree(pending_T_, result.T_prior_world, query.T_world_cam);
   if (confirms || !needs_confirmation) {
     accepted_ = true;
-    // Of two that agree, an ORB pose-only fit (the pending weak one, or a polished later one) over an
-    // NDT pose the polish did not refine: outdoor f4609 (seed 2) held a weak fit 0.20 cm from the
-    // truth, and the later fit that confirmed it was an unpolished NDT one 4.5 cm off.
-    accepted_T_ = confirms && !result.orb_refined ? pending_T_ : result.T_prior_world;
+    // Of two that agree, the better supported (header): outdoor f4609 (seed 2) held a weak ORB fit
+    // 0.20 cm from the truth, and the later fit that confirmed it was an unpolished NDT one 4.5 cm off.
+    accepted_T_ = confirms && pending_support_ > result_support ? pending_T_ : result.T_prior_world;
     pending_ = false;
     return ConfirmationVerdict::kAccepted;
   }
   if (pending_) ++superseded_;
   pending_ = true;
   pending_T_ = result.T_prior_world;
+  pending_support_ = result_support;
   return ConfirmationVerdict::kPending;
 }
 

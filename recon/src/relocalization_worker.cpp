@@ -308,9 +308,10 @@ void RelocalizationWorker::run() {
     idle_.notify_all();
     HWR_LOG_INFO("reloc", "attempt %d at %.1f m moved (%d local points): %s%s", attempt, moved_m_, local_n_,
                  r.message.c_str(),
-                 r.localized && !localized ? " (a weak fit without a position prior: pending until a later "
-                                             "attempt agrees)"
-                                           : "");
+                 !r.localized || localized ? ""
+                 : r.polish_refused
+                     ? " (its ORB polish was refused: pending until a later attempt agrees)"
+                     : " (a weak fit without a position prior: pending until a later attempt agrees)");
     if (localized) {
       if (updater_ != nullptr) run_updates();
       return;

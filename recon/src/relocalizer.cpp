@@ -1935,6 +1935,7 @@ RelocalizationResult Relocalizer::relocalize(const RelocalizationQuery& q, Prior
     }
     if (!why.empty() && res.orb_refine_failure.empty()) res.orb_refine_failure = "polish: " + why;
     not_polished = why;
+    res.polish_refused = !why.empty();
     if (o.status.ok() && o.beyond_move && cfg.orb_polish_rejects_beyond_move) {
       // The keypoints near the camera put it further from the NDT fit than a polish may move it: the
       // fit is off (hwr-bench reloc, 50 starts: all 12 accepted fits whose polish was refused so were

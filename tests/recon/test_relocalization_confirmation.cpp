@@ -116,6 +116,46 @@ TEST(RelocalizationConfirmation, GivenAPendingWeakFitConfirmedByAnAgreeingFitThe
   EXPECT_TRUE(d.accepted_T_prior_world().isApprox(near));
 }
 
+// outdoor f4500 (seed 2, GNSS rows): a converged NDT fit 11.4 cm / 1.45 deg off, accepted with a GNSS
+// position prior although its ORB polish was refused (99 of the 100 inliers it needs).
+TEST(RelocalizationConfirmation, GivenAFitWhosePolishWasRefusedThenItWaitsEvenWithAPositionPrior) {
+  const Eigen::Isometry3d off = pose(41.45, {3.08, -1.93, 0.1});  // ~11 cm, 1.45 deg from kTrue
+  RelocalizationResult unpolished = localized(off, false);
+  unpolished.polish_refused = true;
+  {
+    RelocalizationConfirmation c;
+    EXPECT_EQ(c.offer(unpolished, query_at({1, 0, 0}, true)), ConfirmationVerdict::kPending);
+    // A later polished fit that disagrees needs no confirmation: accepted, the held one dropped.
+    RelocalizationResult polished = localized(kTrue, false);
+    polished.orb_refined = true;
+    EXPECT_EQ(c.offer(polished, query_at({2, 0, 0}, true)), ConfirmationVerdict::kAccepted);
+    EXPECT_TRUE(c.accepted_T_prior_world().isApprox(kTrue));
+  }
+  {
+    // Two refused polishes that agree: accepted, the later one kept (the same support).
+    RelocalizationConfirmation c;
+    RelocalizationResult first = localized(kTrue, false);
+    first.polish_refused = true;
+    EXPECT_EQ(c.offer(first, query_at({1, 0, 0}, true)), ConfirmationVerdict::kPending);
+    RelocalizationResult second = localized(pose(40.1, {3.01, -2.0, 0.1}), false);
+    second.polish_refused = true;
+    EXPECT_EQ(c.offer(second, query_at({2, 0, 0}, true)), ConfirmationVerdict::kAccepted);
+    EXPECT_TRUE(c.accepted_T_prior_world().isApprox(second.T_prior_world));
+  }
+  {
+    // A held unpolished fit confirmed by an agreeing NDT fit whose polish was not tried: the latter kept.
+    RelocalizationConfirmation c;
+    EXPECT_EQ(c.offer(unpolished, query_at({1, 0, 0}, true)), ConfirmationVerdict::kPending);
+    const RelocalizationResult ndt = localized(pose(41.4, {3.07, -1.93, 0.1}), false);
+    EXPECT_EQ(c.offer(ndt, query_at({2, 0, 0}, true)), ConfirmationVerdict::kAccepted);
+    EXPECT_TRUE(c.accepted_T_prior_world().isApprox(ndt.T_prior_world));
+  }
+  RelocalizationConfirmationConfig no_unpolished;
+  no_unpolished.confirm_unpolished = false;
+  RelocalizationConfirmation c(no_unpolished);
+  EXPECT_EQ(c.offer(unpolished, query_at({1, 0, 0}, true)), ConfirmationVerdict::kAccepted);
+}
+
 TEST(RelocalizationConfirmation, GivenTwoPosesThenTheyAgreeWithinTheLimitsAtTheLaterCamera) {
   RelocalizationConfirmation c;  // 10 cm, 1 deg
   const Eigen::Isometry3d cam = pose(0.0, {10.0, 0.0, 0.0});

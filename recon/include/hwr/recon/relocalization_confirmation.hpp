@@ -14,6 +14,14 @@
 // (a GNSS fix bounds the repeats it can land on, position_gate in relocalizer.hpp), is accepted at once,
 // as is a later result that needs no confirmation even when a pending one disagrees with it.
 //
+// A converged fit whose ORB polish was refused (RelocalizationResult::polish_refused: its accuracy
+// rests on NDT alone) is held as well, with or without a position prior (confirm_unpolished): a GNSS
+// fix bounds where a fit lands to metres, not its accuracy. In hwr-bench reloc (outdoor, seed 2, f4500,
+// GNSS rows) such a fit was accepted 11.4 cm / 1.45 deg off (its polish kept 99 of the 100 inliers it
+// needs); it was the only accepted fit of the 378 in that draw with a refused polish. Of two that agree,
+// the kept pose is the better supported: ORB-refined, then NDT with the polish not tried, then NDT with
+// the polish refused (ties: the later).
+//
 // Used by RelocalizationWorker (the robot) and hwr-bench reloc, one per run; no allocation.
 
 #include <Eigen/Geometry>
@@ -24,6 +32,7 @@ namespace hwr::recon {
 
 struct RelocalizationConfirmationConfig {
   bool confirm_weak_without_position = true;  // false: every localized result is accepted at once
+  bool confirm_unpolished = true;             // also hold fits whose ORB polish was refused (header)
   // Two T_prior_world agree when they put the later camera within agree_m of each other and differ by
   // at most agree_rad. Correct fits are within 3 cm / 0.3 deg of the truth (hwr-bench reloc: 0.48 cm
   // at most); wrong ones metres off.
@@ -58,12 +67,16 @@ class RelocalizationConfirmation {
   // Whether two T_prior_world agree at the camera T_world_cam (config's agree_m, agree_rad).
   bool agree(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b,
              const Eigen::Isometry3d& T_world_cam) const;
+  // How well keypoints support a localized result's pose: 2 ORB-refined, 1 NDT (polish not tried),
+  // 0 NDT whose polish was refused.
+  static int support(const RelocalizationResult& result);
 
  private:
   RelocalizationConfirmationConfig config_;
   bool accepted_ = false, pending_ = false;
   Eigen::Isometry3d accepted_T_ = Eigen::Isometry3d::Identity();
   Eigen::Isometry3d pending_T_ = Eigen::Isometry3d::Identity();
+  int pending_support_ = 0;  // support() of the pending result
   int superseded_ = 0;
 };
 

@@ -453,6 +453,9 @@ struct RelocalizationResult {
   int orb_refine_inliers = 0;  // of the best fit's refinement
   double orb_refine_sigma_m = 0, orb_refine_sigma_rad = 0;
   std::string orb_refine_failure;  // the first failed attempt's (the best coarse fit is refined first)
+  // An accepted converged fit whose ORB polish was tried and refused (too few inliers, gates): its
+  // accuracy rests on NDT alone (relocalization_confirmation.hpp holds such a fit for confirmation).
+  bool polish_refused = false;
   double wall_s = 0;
   // Where the time went: a + b (sampling, votes), c (matching, RANSAC, seeds), d + e (prior points,
   // NDT, acceptance); index_s: building the prior's LSH index (first call with a prior map, part of
