@@ -623,6 +623,21 @@ TEST(FreeSpaceCarver, GivenMeasuredPlanesForThePoseCheckThenExactPosesCarveAndWr
   }
 }
 
+// The floor (kStatic) and the wall at x = 3 (labelled kKeptPlate: the surface under test) of the lab
+// corner, the wall's points scattered along its normal by sigma_m: a wall the first run saw from afar.
+Prior thick_wall_prior(double sigma_m, std::mt19937* rng) {
+  Prior prior;
+  add_grid(2, 0.0, {-1.0, -2.0}, {3.0, 2.0}, rng, &prior,
+           [](const Eigen::Vector3d&) { return Label::kStatic; });
+  const size_t wall_first = prior.points.size();
+  add_grid(0, 3.0, {-2.0, 0.0}, {2.0, 2.0}, rng, &prior,
+           [](const Eigen::Vector3d&) { return Label::kKeptPlate; });
+  std::normal_distribution<double> thick(0.0, sigma_m);
+  for (size_t i = wall_first; i < prior.points.size(); ++i)
+    prior.points[i].x_m += static_cast<float>(thick(*rng));
+  return prior;
+}
+
 // A prior surface seen from afar in the first run is centimetres thick: here the wall's prior points
 // scatter by sigma = 12 mm along its normal (the sim lab's were spread over -31..+35 mm between their
 // 10th and 90th percentile residuals). The check on measured planes passes the exact views, and the
@@ -640,15 +655,7 @@ TEST(FreeSpaceCarver, GivenAThickPriorWallThenTheSpreadMarginKeepsItsPoints) {
   int lost[2] = {0, 0}, observed[2] = {0, 0};
   for (const float spread_margin_iqrs : {0.0f, 2.0f}) {
     std::mt19937 rng(11);
-    Prior prior;
-    add_grid(2, 0.0, {-1.0, -2.0}, {3.0, 2.0}, &rng, &prior,
-             [](const Eigen::Vector3d&) { return Label::kStatic; });
-    const size_t wall_first = prior.points.size();
-    add_grid(0, 3.0, {-2.0, 0.0}, {2.0, 2.0}, &rng, &prior,
-             [](const Eigen::Vector3d&) { return Label::kKeptPlate; });
-    std::normal_distribution<double> thick(0.0, 0.012);
-    for (size_t i = wall_first; i < prior.points.size(); ++i)
-      prior.points[i].x_m += static_cast<float>(thick(rng));
+    const Prior prior = thick_wall_prior(0.012, &rng);
     FreeSpaceCarverConfig cfg;
     cfg.max_iqr_to_margin = 1.0f;  // as PriorMapUpdater sets it
     cfg.spread_margin_iqrs = spread_margin_iqrs;
@@ -709,15 +716,7 @@ TEST(FreeSpaceCarver, GivenAVeryThickPriorWallThenTheTrendTestPassesExactViewsAn
                         Case{"trend test, exact", true, Eigen::Isometry3d::Identity()},
                         Case{"trend test, 1 deg yaw", true, T_yaw}}) {
     std::mt19937 rng(13);
-    Prior prior;
-    add_grid(2, 0.0, {-1.0, -2.0}, {3.0, 2.0}, &rng, &prior,
-             [](const Eigen::Vector3d&) { return Label::kStatic; });
-    const size_t wall_first = prior.points.size();
-    add_grid(0, 3.0, {-2.0, 0.0}, {2.0, 2.0}, &rng, &prior,
-             [](const Eigen::Vector3d&) { return Label::kKeptPlate; });
-    std::normal_distribution<double> thick(0.0, 0.020);
-    for (size_t i = wall_first; i < prior.points.size(); ++i)
-      prior.points[i].x_m += static_cast<float>(thick(rng));
+    const Prior prior = thick_wall_prior(0.020, &rng);
     FreeSpaceCarverConfig cfg;
     cfg.max_iqr_to_margin = 1.0f;  // as PriorMapUpdater sets them
     cfg.spread_margin_iqrs = 2.0f;
