@@ -624,6 +624,30 @@ hwr::core::Status write_relocalization_yaml(const std::string& map_dir, const st
                   rs.moved_at_localization_m, t.x(), t.y(), t.z(), q.x(), q.y(), q.z(), q.w());
     y += line;
   }
+  // Each attempt (the worker keeps the first max_attempts_logged): where, how long, what it said, with
+  // which priors, and whether its pose was held for a later attempt to confirm.
+  y += rs.log.empty() ? "attempt_log: []\n" : "attempt_log:\n";
+  for (const hwr::recon::RelocalizationAttempt& a : rs.log) {
+    std::snprintf(line, sizeof(line),
+                  "  - {moved_m: %.3f, wall_s: %.4f, result: \"%s\", position_prior: %s, yaw_prior: %s, "
+                  "local_points: %d, pending_confirmation: %s}\n",
+                  a.moved_m, a.wall_s, hwr::recon::relocalization_reason_name(a.reason),
+                  a.position_prior ? "true" : "false", a.yaw_prior ? "true" : "false", a.local_points,
+                  a.pending_confirmation ? "true" : "false");
+    y += line;
+  }
+  if (rs.localized) {
+    const hwr::recon::PriorMapUpdaterCounters& u = rs.update;
+    std::snprintf(
+        line, sizeof(line),
+        "map_update:\n  keyframes: %llu\n  keyframes_dropped: %llu\n  carving_views: %llu\n"
+        "  views_failed_pose_check: %llu\n  segments_updated: %llu\n  points_deleted: %lld\n",
+        static_cast<unsigned long long>(u.keyframes), static_cast<unsigned long long>(rs.keyframes_dropped),
+        static_cast<unsigned long long>(u.frames_carved + u.frames_misaligned),
+        static_cast<unsigned long long>(u.frames_misaligned),
+        static_cast<unsigned long long>(u.segments_updated), static_cast<long long>(u.points_deleted));
+    y += line;
+  }
   return hwr::core::write_file_atomic(map_dir + "/relocalization.yaml", y);
 }
 

@@ -134,6 +134,12 @@ TEST(HwrRobotPriorMap, GivenASecondVisitStartedElsewhereThenItRelocalizesAndCont
   EXPECT_NE(reloc.find("localized: true"), std::string::npos) << reloc;
   EXPECT_NE(reloc.find("first_segment_id: " + std::to_string(prior_segments)), std::string::npos) << reloc;
   EXPECT_NE(reloc.find("T_prior_world:"), std::string::npos) << reloc;
+  // Every attempt is logged, the last one the localized (or confirming) one, and the map update's
+  // counters follow.
+  EXPECT_NE(reloc.find("attempt_log:\n  - {moved_m: "), std::string::npos) << reloc;
+  EXPECT_NE(reloc.find("result: \"localized\""), std::string::npos) << reloc;
+  EXPECT_NE(reloc.find("map_update:\n  keyframes: "), std::string::npos) << reloc;
+  EXPECT_NE(reloc.find("  points_deleted: "), std::string::npos) << reloc;
 
   // The map update: what it deleted from the first run's segments, against its plate ground truth
   // (fillet_n3 moved between the runs; it is far from this short walk).
@@ -165,6 +171,8 @@ TEST(HwrRobotPriorMap, GivenARunOutsideThePriorsAreaThenNotLocalizedAndItsOwnFra
   const std::string reloc = read_text(current + "/relocalization.yaml");
   EXPECT_NE(reloc.find("localized: false"), std::string::npos) << reloc;
   EXPECT_EQ(reloc.find("T_prior_world:"), std::string::npos) << reloc;
+  EXPECT_EQ(reloc.find("result: \"localized\""), std::string::npos) << reloc;
+  EXPECT_EQ(reloc.find("map_update:"), std::string::npos) << reloc;
 }
 
 TEST(HwrRobotPriorMap, GivenAMissingPriorMapThenOneClearLineAndExitCode1) {
