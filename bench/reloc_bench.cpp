@@ -25,7 +25,8 @@
 //                   [--robot PATH] [--false-starts 20] [--max-attempts 30] [--first-motion-m 1]
 //                   [--attempt-step-m 1] [--max-motion-m 30] [--keyframe-step 12] [--verbose]
 //                   [--sets neither,imu,gnss,both] [--orb-refine all|weak|off] [--start-frames F,F,...]
-//                   [--min-attempt-structure N] [--start-walk-m 8.5] [--matching exact|lsh]
+//                   [--min-attempt-structure N] [--min-structure N] [--start-walk-m 8.5] [--matching
+//                   exact|lsh]
 //                   [--targets whole|gathered] [--near-rivals keypoints|as-is] [--confirm all|weak|off]
 //  --start-frames: these revisit frames instead of --starts random ones, in every scene of --scenes
 //    (to rerun the starts a verbose log names: --scenes outdoor --start-frames f4678); frames past a
@@ -91,6 +92,7 @@ struct Options {
   // only), off.
   std::string orb_refine = "all";
   int min_attempt_structure = -1;  // --min-attempt-structure: RelocalizerConfig's (-1: its default)
+  int min_structure = -1;          // --min-structure: RelocalizerConfig::min_structure_points (-1: default)
   std::string matching = "exact";  // --matching exact|lsh (RelocalizerConfig::exact_matching)
   // --targets whole|gathered: the whole prior's NDT targets built once (RelocalizerConfig::
   // whole_prior_targets, the default) or the prior points gathered and voxelised per hypothesis.
@@ -590,6 +592,8 @@ int run_reloc(int argc, char** argv) {
       }
     } else if (a == "--min-attempt-structure") {
       o.min_attempt_structure = std::atoi(value("--min-attempt-structure").c_str());
+    } else if (a == "--min-structure") {
+      o.min_structure = std::atoi(value("--min-structure").c_str());
     } else if (a == "--orb-refine") {
       o.orb_refine = value("--orb-refine");
       if (o.orb_refine != "off" && o.orb_refine != "weak" && o.orb_refine != "all") {
@@ -625,7 +629,8 @@ int run_reloc(int argc, char** argv) {
           "       [--prior-cache DIR] [--robot PATH] [--false-starts N] [--max-attempts N]\n"
           "       [--first-motion-m M] [--attempt-step-m M] [--max-motion-m M] [--keyframe-step N] "
           "[--verbose]\n       [--sets neither,imu,gnss,both] [--orb-refine all|weak|off] "
-          "[--start-frames F,F,...]\n       [--min-attempt-structure N] [--start-walk-m M] "
+          "[--start-frames F,F,...]\n       [--min-attempt-structure N] [--min-structure N] [--start-walk-m "
+          "M] "
           "[--matching exact|lsh]\n       [--targets whole|gathered] [--near-rivals keypoints|as-is]\n"
           "       [--confirm all|weak|off]\n");
       return a == "--help" || a == "-h" ? 0 : 2;
@@ -647,6 +652,7 @@ int run_reloc(int argc, char** argv) {
   rcfg.orb_refine = o.orb_refine != "off";
   rcfg.orb_refine_converged = o.orb_refine == "all";
   if (o.min_attempt_structure >= 0) rcfg.min_attempt_structure_points = o.min_attempt_structure;
+  if (o.min_structure >= 0) rcfg.min_structure_points = o.min_structure;
   rcfg.exact_matching = o.matching == "exact";
   rcfg.whole_prior_targets = o.targets == "whole";
   rcfg.orb_judges_near_rivals = o.near_rivals == "keypoints";

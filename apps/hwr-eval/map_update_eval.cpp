@@ -25,9 +25,6 @@
 #include <limits>
 #include <string>
 #include <vector>
-#include <set>
-#include <tuple>
-#include <cstdlib>
 
 #include "hwr/core/tum_trajectory.hpp"
 #include "hwr/recon/map_store.hpp"
@@ -104,7 +101,6 @@ int run_map_update(int argc, char** argv) {
       hwr::recon::OrientedBox b;
       b.T_world_box = p.T_world_plate;
       b.half_size_m = p.size_m / 2 + Eigen::Vector3d::Constant(margin_m);
-      if (std::getenv("HWR_WIDE")) b.half_size_m += Eigen::Vector3d(0.2, 0.2, 0.05);
       old_place.push_back(b);
       old_place_names.push_back(p.name);
       ++found;
@@ -214,21 +210,6 @@ int run_map_update(int argc, char** argv) {
     }
     old_before += o;
     else_before += e;
-    if (const char* dump = std::getenv("HWR_DUMP")) {
-      std::set<std::tuple<float, float, float>> kept;
-      for (const auto& p : b->points_segment) kept.insert({p.x_m, p.y_m, p.z_m});
-      FILE* f = std::fopen(dump, "a");
-      for (const auto& p : a->points_segment) {
-        const Eigen::Vector3d w = a->T_world_segment * Eigen::Vector3d(p.x_m, p.y_m, p.z_m);
-        for (size_t k = 0; k < n_plates; ++k) {
-          if (boxes[k].distance_m(w) != 0.0) continue;
-          const Eigen::Vector3d l = boxes[k].T_world_box.inverse() * w;
-          std::fprintf(f, "%u,%zu,%.4f,%.4f,%.4f,%d\n", ps.segment_id, k, l.x(), l.y(), l.z(),
-                       kept.count({p.x_m, p.y_m, p.z_m}) ? 0 : 1);
-        }
-      }
-      std::fclose(f);
-    }
     int64_t o_after = 0, e_after = 0;
     std::fill(seg_plate_after.begin(), seg_plate_after.end(), 0);
     count(b.value(), &o_after, &e_after, &seg_plate_after);

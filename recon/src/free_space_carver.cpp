@@ -315,8 +315,8 @@ struct FreeSpaceCarver::Impl {
     const int axis = k / 2;  // +x -x +y -y +z -z
     const int a0 = (axis + 1) % 3, a1 = (axis + 2) % 3;
     const float keep_m = 2.0f * std::max(iqr_m, 2.0f * rc.bias_window_m / kBiasBins);
-    Eigen::Matrix<double, 6, 1> sums = Eigen::Matrix<double, 6, 1>::Zero();  // n, Σu, Σv, Σr
-    Eigen::Matrix3d uvr2 = Eigen::Matrix3d::Zero();                          // Σ [u v r][u v r]ᵀ
+    Eigen::Vector4d sums = Eigen::Vector4d::Zero();  // n, Σu, Σv, Σr
+    Eigen::Matrix3d uvr2 = Eigen::Matrix3d::Zero();  // Σ [u v r][u v r]ᵀ
     for (int i = 0; i < rc.ray_log_n; ++i) {
       const CheckRay& cr = rc.ray_log[i];
       if (cr.cluster != k || std::abs(cr.r_m - median_m) > keep_m) continue;
