@@ -623,6 +623,20 @@ TEST(FreeSpaceCarver, GivenMeasuredPlanesForThePoseCheckThenExactPosesCarveAndWr
   }
 }
 
+// Three views of the lab corner's wall from 2.7-3 m (the thick-wall tests).
+std::vector<Eigen::Isometry3d> wall_views() {
+  return {look_at({0.0, 0.0, 1.2}, {3.0, 0.0, 0.8}), look_at({0.2, -1.0, 0.6}, {3.0, 0.5, 0.3}),
+          look_at({0.3, 1.0, 0.8}, {3.0, -0.8, 0.5})};
+}
+
+// Check planes every 4th pixel from pixel 2 (as many check rays as the sparse pass casts here).
+PlaneSamplingParams check_plane_sampling() {
+  PlaneSamplingParams sampling;
+  sampling.stride_px = 4;
+  sampling.offset_px = 2;
+  return sampling;
+}
+
 // The floor (kStatic) and the wall at x = 3 (labelled kKeptPlate: the surface under test) of the lab
 // corner, the wall's points scattered along its normal by sigma_m: a wall the first run saw from afar.
 Prior thick_wall_prior(double sigma_m, std::mt19937* rng) {
@@ -646,12 +660,8 @@ Prior thick_wall_prior(double sigma_m, std::mt19937* rng) {
 TEST(FreeSpaceCarver, GivenAThickPriorWallThenTheSpreadMarginKeepsItsPoints) {
   const hal::PinholeIntrinsics K = camera(320, 240, 260.0);
   const std::vector<Box> scene = {kFloor, kWall};
-  const std::vector<Eigen::Isometry3d> views = {look_at({0.0, 0.0, 1.2}, {3.0, 0.0, 0.8}),
-                                                look_at({0.2, -1.0, 0.6}, {3.0, 0.5, 0.3}),
-                                                look_at({0.3, 1.0, 0.8}, {3.0, -0.8, 0.5})};
-  PlaneSamplingParams sampling;
-  sampling.stride_px = 4;
-  sampling.offset_px = 2;
+  const std::vector<Eigen::Isometry3d> views = wall_views();
+  const PlaneSamplingParams sampling = check_plane_sampling();
   int lost[2] = {0, 0}, observed[2] = {0, 0};
   for (const float spread_margin_iqrs : {0.0f, 2.0f}) {
     std::mt19937 rng(11);
@@ -697,12 +707,8 @@ TEST(FreeSpaceCarver, GivenAThickPriorWallThenTheSpreadMarginKeepsItsPoints) {
 TEST(FreeSpaceCarver, GivenAVeryThickPriorWallThenTheTrendTestPassesExactViewsAndRejectsARotation) {
   const hal::PinholeIntrinsics K = camera(320, 240, 260.0);
   const std::vector<Box> scene = {kFloor, kWall};
-  const std::vector<Eigen::Isometry3d> views = {look_at({0.0, 0.0, 1.2}, {3.0, 0.0, 0.8}),
-                                                look_at({0.2, -1.0, 0.6}, {3.0, 0.5, 0.3}),
-                                                look_at({0.3, 1.0, 0.8}, {3.0, -0.8, 0.5})};
-  PlaneSamplingParams sampling;
-  sampling.stride_px = 4;
-  sampling.offset_px = 2;
+  const std::vector<Eigen::Isometry3d> views = wall_views();
+  const PlaneSamplingParams sampling = check_plane_sampling();
   Eigen::Isometry3d T_yaw = Eigen::Isometry3d::Identity();
   T_yaw.linear() = Eigen::AngleAxisd(M_PI / 180.0, Eigen::Vector3d::UnitZ()).toRotationMatrix();
   struct Case {
