@@ -11,6 +11,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <cstdio>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -69,8 +70,10 @@ bool near_a_camera(const Scene& s, const Eigen::Vector3d& p_prior) {
 }
 
 const Scene& scene() {
-  static const Scene* s = [] {
-    auto* out = new Scene;
+  // Held until the process exits, when its TempDir removes the prior store (a leaked pointer left it
+  // in the temp dir after every test process).
+  static const std::unique_ptr<Scene> s = [] {
+    auto out = std::make_unique<Scene>();
     out->prior_dir = out->tmp.path() + "/prior";
     SegmentRecord seg;
     KeyframeCloudConfig cloud_config;
