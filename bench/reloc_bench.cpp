@@ -25,9 +25,9 @@
 //                   [--robot PATH] [--false-starts 20] [--max-attempts 30] [--first-motion-m 1]
 //                   [--attempt-step-m 1] [--max-motion-m 30] [--keyframe-step 12] [--verbose]
 //                   [--sets neither,imu,gnss,both] [--orb-refine all|weak|off] [--start-frames F,F,...]
-//                   [--min-attempt-structure N] [--min-structure N] [--start-walk-m 8.5] [--matching
-//                   exact|lsh]
-//                   [--targets whole|gathered] [--near-rivals keypoints|as-is] [--confirm all|weak|off]
+//                   [--min-attempt-structure N] [--min-structure N] [--start-walk-m 8.5]
+//                   [--matching exact|lsh] [--targets whole|gathered] [--near-rivals keypoints|as-is]
+//                   [--confirm all|weak|off]
 //  --start-frames: these revisit frames instead of --starts random ones, in every scene of --scenes
 //    (to rerun the starts a verbose log names: --scenes outdoor --start-frames f4678); frames past a
 //    scene's last usable start are refused before its prior is opened. The false check (outdoor
@@ -271,8 +271,9 @@ struct StartRecord {
   double moved_m = 0;
   PoseError err_true, err_local;
   std::string last_reason;
-  // Weak fits held for confirmation (relocalization_confirmation.hpp), and those beyond 30 cm / 3 deg
-  // of the local truth: each of these would have been a false relocalization accepted at once.
+  // Fits held for confirmation (relocalization_confirmation.hpp: weak without a position prior, or
+  // polish refused), and those beyond 30 cm / 3 deg of the local truth: each of these would have been
+  // a false relocalization accepted at once.
   int pending_fits = 0, pending_wrong = 0;
 };
 
@@ -629,9 +630,9 @@ int run_reloc(int argc, char** argv) {
           "       [--prior-cache DIR] [--robot PATH] [--false-starts N] [--max-attempts N]\n"
           "       [--first-motion-m M] [--attempt-step-m M] [--max-motion-m M] [--keyframe-step N] "
           "[--verbose]\n       [--sets neither,imu,gnss,both] [--orb-refine all|weak|off] "
-          "[--start-frames F,F,...]\n       [--min-attempt-structure N] [--min-structure N] [--start-walk-m "
-          "M] "
-          "[--matching exact|lsh]\n       [--targets whole|gathered] [--near-rivals keypoints|as-is]\n"
+          "[--start-frames F,F,...]\n"
+          "       [--min-attempt-structure N] [--min-structure N] [--start-walk-m M]\n"
+          "       [--matching exact|lsh] [--targets whole|gathered] [--near-rivals keypoints|as-is]\n"
           "       [--confirm all|weak|off]\n");
       return a == "--help" || a == "-h" ? 0 : 2;
     }

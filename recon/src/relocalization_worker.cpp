@@ -278,14 +278,19 @@ void RelocalizationWorker::run() {
     const RelocalizationResult r = relocalizer_.relocalize(q, &prior_);
     const ConfirmationVerdict verdict = confirmation_.offer(r, q);
     const bool localized = verdict == ConfirmationVerdict::kAccepted;
+    // Why a localized result was held (relocalization_confirmation.hpp), for the status and the log.
+    const char* held = !r.localized || localized ? ""
+                       : r.polish_refused
+                           ? " (its ORB polish was refused: pending until a later attempt agrees)"
+                           : " (a weak fit without a position prior: pending until a later "
+                             "attempt agrees)";
     int attempt = 0;
     if (localized) T_prior_world_ = confirmation_.accepted_T_prior_world();
     {
       std::lock_guard<std::mutex> lock(mutex_);
       attempt = ++status_.attempts;
       status_.wall_s_total += r.wall_s;
-      status_.last_message = r.message;
-      if (r.localized && !localized) status_.last_message += " (pending: a later attempt must agree)";
+      status_.last_message = r.message + held;
       if (status_.log.size() < static_cast<size_t>(config_.max_attempts_logged)) {
         RelocalizationAttempt a;
         a.moved_m = moved_m_;
@@ -307,11 +312,7 @@ void RelocalizationWorker::run() {
     }
     idle_.notify_all();
     HWR_LOG_INFO("reloc", "attempt %d at %.1f m moved (%d local points): %s%s", attempt, moved_m_, local_n_,
-                 r.message.c_str(),
-                 !r.localized || localized ? ""
-                 : r.polish_refused
-                     ? " (its ORB polish was refused: pending until a later attempt agrees)"
-                     : " (a weak fit without a position prior: pending until a later attempt agrees)");
+                 r.message.c_str(), held);
     if (localized) {
       if (updater_ != nullptr) run_updates();
       return;

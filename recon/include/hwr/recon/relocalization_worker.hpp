@@ -44,8 +44,8 @@ namespace hwr::recon {
 
 struct RelocalizationWorkerConfig {
   RelocalizerConfig relocalizer;
-  // A weak fit found without a position prior waits for a later attempt to agree
-  // (relocalization_confirmation.hpp).
+  // A weak fit found without a position prior, or a fit whose ORB polish was refused, waits for a
+  // later attempt to agree (relocalization_confirmation.hpp).
   RelocalizationConfirmationConfig confirmation;
   double first_attempt_m = 0.5;  // distance moved before the first attempt (the local map needs views)
   double retry_every_m = 0.5;    // after a failed attempt, this much more motion before the next
@@ -87,7 +87,7 @@ struct RelocalizationAttempt {
   RelocalizationReason reason = RelocalizationReason::kNdtFailed;
   bool position_prior = false, yaw_prior = false;
   int local_points = 0;
-  bool pending_confirmation = false;  // a weak pose that waits for a later attempt to agree
+  bool pending_confirmation = false;  // a localized pose held until a later attempt agrees
 };
 
 struct RelocalizationWorkerStatus {
