@@ -27,7 +27,7 @@
 //                   [--sets neither,imu,gnss,both] [--orb-refine all|weak|off] [--start-frames F,F,...]
 //                   [--min-attempt-structure N] [--min-structure N] [--start-walk-m 8.5]
 //                   [--matching exact|lsh] [--targets whole|gathered] [--near-rivals keypoints|as-is]
-//                   [--confirm all|weak|off]
+//                   [--confirm all|weak|off] [--confirm-separation-m M]
 //  --start-frames: these revisit frames instead of --starts random ones, in every scene of --scenes
 //    (to rerun the starts a verbose log names: --scenes outdoor --start-frames f4678); frames past a
 //    scene's last usable start are refused before its prior is opened. The false check (outdoor
@@ -104,6 +104,7 @@ struct Options {
   // refused are accepted only when a later attempt agrees (relocalization_confirmation.hpp, as the
   // robot's worker does), or (off) at once.
   std::string confirm = "all";
+  double confirm_separation_m = -1;  // < 0: RelocalizationConfirmationConfig's default
 };
 
 // ---- sensor sets (paper Table IV columns) ----
@@ -591,6 +592,12 @@ int run_reloc(int argc, char** argv) {
         std::fprintf(stderr, "reloc: --confirm takes all, weak or off\n");
         return 2;
       }
+    } else if (a == "--confirm-separation-m") {
+      o.confirm_separation_m = std::atof(value("--confirm-separation-m").c_str());
+      if (!(o.confirm_separation_m >= 0)) {
+        std::fprintf(stderr, "reloc: --confirm-separation-m takes metres >= 0\n");
+        return 2;
+      }
     } else if (a == "--min-attempt-structure") {
       o.min_attempt_structure = std::atoi(value("--min-attempt-structure").c_str());
     } else if (a == "--min-structure") {
@@ -633,7 +640,7 @@ int run_reloc(int argc, char** argv) {
           "[--start-frames F,F,...]\n"
           "       [--min-attempt-structure N] [--min-structure N] [--start-walk-m M]\n"
           "       [--matching exact|lsh] [--targets whole|gathered] [--near-rivals keypoints|as-is]\n"
-          "       [--confirm all|weak|off]\n");
+          "       [--confirm all|weak|off] [--confirm-separation-m M]\n");
       return a == "--help" || a == "-h" ? 0 : 2;
     }
   }
@@ -660,6 +667,7 @@ int run_reloc(int argc, char** argv) {
   recon::RelocalizationConfirmationConfig confirm_cfg;
   confirm_cfg.confirm_weak_without_position = o.confirm != "off";
   confirm_cfg.confirm_unpolished = o.confirm == "all";
+  if (o.confirm_separation_m >= 0) confirm_cfg.min_separation_m = o.confirm_separation_m;
   std::printf(
       "hwr-bench reloc: %d starts per scene (seed %llu), %d false starts (outdoor vs lab prior); attempts "
       "from %.1f m "
@@ -672,13 +680,13 @@ int run_reloc(int argc, char** argv) {
       "%.2f, min_score_margin %.2f, candidate_sigma_factor %.1f, ndt_fine down to %.2f m, attempts need %d "
       "structure points, %s "
       "keyframe matching), ORB refinement %s, near rivals of weak fits %s, weak fits without a position "
-      "prior%s %s\n",
+      "prior%s %s (its camera >= %.1f m from the held fit's)\n",
       rcfg.top_k, rcfg.min_votes, rcfg.keep_best, rcfg.min_inlier_ratio, rcfg.min_score_margin,
       rcfg.candidate_sigma_factor, rcfg.ndt_fine.resolutions_m[1], rcfg.min_attempt_structure_points,
       o.matching.c_str(), o.orb_refine.c_str(),
       o.near_rivals == "keypoints" ? "judged by keypoints" : "as they are",
       o.confirm == "all" ? " and fits with a refused polish" : "",
-      o.confirm != "off" ? "confirmed by a later attempt" : "accepted at once");
+      o.confirm != "off" ? "confirmed by a later attempt" : "accepted at once", confirm_cfg.min_separation_m);
 
   struct Scene {
     std::string name;

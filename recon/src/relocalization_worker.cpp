@@ -26,6 +26,9 @@ core::Expected<std::unique_ptr<RelocalizationWorker>> RelocalizationWorker::star
   if (!(config.confirmation.agree_m > 0) || !(config.confirmation.agree_rad > 0)) {
     return core::InvalidArgument("relocalization: confirmation agree_m and agree_rad must be positive");
   }
+  if (!(config.confirmation.min_separation_m >= 0) || !std::isfinite(config.confirmation.min_separation_m)) {
+    return core::InvalidArgument("relocalization: confirmation min_separation_m must be >= 0");
+  }
   auto relocalizer = Relocalizer::create(config.relocalizer, K, max_features);
   if (!relocalizer.ok()) return relocalizer.status();
   std::unique_ptr<PriorMapUpdater> updater;

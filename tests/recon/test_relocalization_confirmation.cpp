@@ -78,11 +78,11 @@ TEST(RelocalizationConfirmation, GivenAWeakFitWithoutAPositionPriorThenALaterAtt
   EXPECT_TRUE(c.pending_T_prior_world().isApprox(kTrue));
   // A later weak fit 3 cm / 0.2 deg from it (another attempt's error) confirms it: the later pose.
   const Eigen::Isometry3d again = pose(40.2, {3.03, -2.0, 0.1});
-  EXPECT_EQ(c.offer(localized(again, true), query_at({5, 0, 0}, false)), ConfirmationVerdict::kAccepted);
+  EXPECT_EQ(c.offer(localized(again, true), query_at({7, 0, 0}, false)), ConfirmationVerdict::kAccepted);
   EXPECT_TRUE(c.accepted_T_prior_world().isApprox(again));
   EXPECT_FALSE(c.pending());
   // Accepted stays accepted until reset.
-  EXPECT_EQ(c.offer(localized(kRepeat, true), query_at({6, 0, 0}, false)), ConfirmationVerdict::kAccepted);
+  EXPECT_EQ(c.offer(localized(kRepeat, true), query_at({9, 0, 0}, false)), ConfirmationVerdict::kAccepted);
   EXPECT_TRUE(c.accepted_T_prior_world().isApprox(again));
   c.reset();
   EXPECT_FALSE(c.accepted());
@@ -105,14 +105,14 @@ TEST(RelocalizationConfirmation, GivenAPendingWeakFitConfirmedByAnAgreeingFitThe
   RelocalizationConfirmation c;
   ASSERT_EQ(c.offer(localized(kTrue, true), query_at({2, 0, 0}, false)), ConfirmationVerdict::kPending);
   RelocalizationResult unpolished = localized(near, false);
-  ASSERT_EQ(c.offer(unpolished, query_at({3, 0, 0}, false)), ConfirmationVerdict::kAccepted);
+  ASSERT_EQ(c.offer(unpolished, query_at({5, 0, 0}, false)), ConfirmationVerdict::kAccepted);
   EXPECT_TRUE(c.accepted_T_prior_world().isApprox(kTrue));
 
   RelocalizationConfirmation d;
   ASSERT_EQ(d.offer(localized(kTrue, true), query_at({2, 0, 0}, false)), ConfirmationVerdict::kPending);
   RelocalizationResult polished = localized(near, false);
   polished.orb_refined = true;  // a converged fit the ORB polish moved
-  ASSERT_EQ(d.offer(polished, query_at({3, 0, 0}, false)), ConfirmationVerdict::kAccepted);
+  ASSERT_EQ(d.offer(polished, query_at({5, 0, 0}, false)), ConfirmationVerdict::kAccepted);
   EXPECT_TRUE(d.accepted_T_prior_world().isApprox(near));
 }
 
@@ -139,7 +139,7 @@ TEST(RelocalizationConfirmation, GivenAFitWhosePolishWasRefusedThenItWaitsEvenWi
     EXPECT_EQ(c.offer(first, query_at({1, 0, 0}, true)), ConfirmationVerdict::kPending);
     RelocalizationResult second = localized(pose(40.1, {3.01, -2.0, 0.1}), false);
     second.polish_refused = true;
-    EXPECT_EQ(c.offer(second, query_at({2, 0, 0}, true)), ConfirmationVerdict::kAccepted);
+    EXPECT_EQ(c.offer(second, query_at({4, 0, 0}, true)), ConfirmationVerdict::kAccepted);
     EXPECT_TRUE(c.accepted_T_prior_world().isApprox(second.T_prior_world));
   }
   {
@@ -147,13 +147,42 @@ TEST(RelocalizationConfirmation, GivenAFitWhosePolishWasRefusedThenItWaitsEvenWi
     RelocalizationConfirmation c;
     EXPECT_EQ(c.offer(unpolished, query_at({1, 0, 0}, true)), ConfirmationVerdict::kPending);
     const RelocalizationResult ndt = localized(pose(41.4, {3.07, -1.93, 0.1}), false);
-    EXPECT_EQ(c.offer(ndt, query_at({2, 0, 0}, true)), ConfirmationVerdict::kAccepted);
+    EXPECT_EQ(c.offer(ndt, query_at({4, 0, 0}, true)), ConfirmationVerdict::kAccepted);
     EXPECT_TRUE(c.accepted_T_prior_world().isApprox(ndt.T_prior_world));
   }
   RelocalizationConfirmationConfig no_unpolished;
   no_unpolished.confirm_unpolished = false;
   RelocalizationConfirmation c(no_unpolished);
   EXPECT_EQ(c.offer(unpolished, query_at({1, 0, 0}, true)), ConfirmationVerdict::kAccepted);
+}
+
+// outdoor f4708 (seed 4, no GNSS): a weak fit 49 m off at 8.29 m of motion, the same wrong pose again
+// from 0.7 m further on (the same view: the same evidence), which confirmed it.
+TEST(RelocalizationConfirmation, GivenAnAgreeingFitFromNearTheHeldOnesCameraThenItConfirmsNothing) {
+  RelocalizationConfirmation c;  // min_separation_m 2
+  ASSERT_EQ(c.offer(localized(kRepeat, true), query_at({8.29, 0, 0}, false)), ConfirmationVerdict::kPending);
+  EXPECT_EQ(c.offer(localized(kRepeat, true), query_at({9.01, 0, 0}, false)), ConfirmationVerdict::kPending);
+  EXPECT_FALSE(c.accepted());
+  EXPECT_EQ(c.superseded(), 0);  // the held fit and its camera kept: the separation counts from there
+  EXPECT_EQ(c.offer(localized(kRepeat, true), query_at({10.1, 0, 0}, false)), ConfirmationVerdict::kPending);
+  // A weak fit elsewhere (the right place, 11.18 m) replaces it; a fit that needs no confirmation
+  // is accepted at once, near or not.
+  EXPECT_EQ(c.offer(localized(kTrue, true), query_at({11.18, 0, 0}, false)), ConfirmationVerdict::kPending);
+  EXPECT_EQ(c.superseded(), 1);
+  EXPECT_EQ(c.offer(localized(kTrue, false), query_at({12.26, 0, 0}, false)), ConfirmationVerdict::kAccepted);
+  EXPECT_TRUE(c.accepted_T_prior_world().isApprox(kTrue));
+
+  // Far enough along (2 m): the held fit is confirmed.
+  RelocalizationConfirmation d;
+  ASSERT_EQ(d.offer(localized(kTrue, true), query_at({1, 0, 0}, false)), ConfirmationVerdict::kPending);
+  EXPECT_EQ(d.offer(localized(kTrue, true), query_at({2.5, 0, 0}, false)), ConfirmationVerdict::kPending);
+  EXPECT_EQ(d.offer(localized(kTrue, true), query_at({1, 2.1, 0}, false)), ConfirmationVerdict::kAccepted);
+
+  RelocalizationConfirmationConfig none;
+  none.min_separation_m = 0.0;
+  RelocalizationConfirmation e(none);
+  ASSERT_EQ(e.offer(localized(kRepeat, true), query_at({8.29, 0, 0}, false)), ConfirmationVerdict::kPending);
+  EXPECT_EQ(e.offer(localized(kRepeat, true), query_at({8.29, 0, 0}, false)), ConfirmationVerdict::kAccepted);
 }
 
 TEST(RelocalizationConfirmation, GivenTwoPosesThenTheyAgreeWithinTheLimitsAtTheLaterCamera) {

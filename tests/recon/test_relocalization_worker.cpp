@@ -202,12 +202,30 @@ TEST(RelocalizationWorker, GivenQueriesFromOutsideThePriorThenNotLocalizedAndRet
 // A weak fit without a position prior waits for a later attempt that agrees
 // (relocalization_confirmation.hpp). Every fine NDT fit is judged degenerate here, so every fit is a
 // weak one (the pose from the ORB fit); the second attempt, from the same view, agrees with the first.
-TEST(RelocalizationWorker, GivenAWeakFitWithoutAPositionPriorThenALaterAttemptMustAgreeBeforeItIsLocalized) {
+// The same view is the same evidence: with the default min_separation_m it confirms nothing; the
+// worker given min_separation_m = 0 takes it as a confirmation.
+TEST(RelocalizationWorker, GivenAWeakFitFromTheSameViewAgainThenItStaysPendingUnlessNoSeparationIsAsked) {
   const Rendered& r = rendered();
   RelocalizationWorkerConfig config;
   config.first_attempt_m = 0.0;
   config.retry_every_m = 0.5;
   config.relocalizer.ndt_fine.degenerate_eigenvalue_ratio = 0.99;
+  {
+    auto w = start_worker(r, config);
+    w->wait_idle();
+    const RelocalizationPriors none;
+    const Eigen::Isometry3d I = Eigen::Isometry3d::Identity();
+    ASSERT_TRUE(w->offer(*r.features, r.T_world_cam, *r.local_map, I, 1.0, none));
+    w->wait_idle();
+    ASSERT_TRUE(w->offer(*r.features, r.T_world_cam, *r.local_map, I, 1.6, none));
+    w->wait_idle();
+    const RelocalizationWorkerStatus s = w->status();
+    EXPECT_FALSE(w->localized()) << s.last_message;
+    ASSERT_EQ(s.log.size(), 2u);
+    EXPECT_EQ(s.log[1].reason, RelocalizationReason::kLocalized) << s.last_message;
+    EXPECT_TRUE(s.log[1].pending_confirmation);
+  }
+  config.confirmation.min_separation_m = 0.0;
   auto w = start_worker(r, config);
   w->wait_idle();
   const RelocalizationPriors none;
@@ -290,6 +308,14 @@ TEST(RelocalizationWorker, GivenAnInvalidConfigThenStartFails) {
   auto w2 = RelocalizationWorker::start(std::move(prior2.value()), no_agreement, r.K, kMaxFeatures);
   ASSERT_FALSE(w2.ok());
   EXPECT_NE(w2.status().message().find("agree_m"), std::string::npos);
+
+  RelocalizationWorkerConfig negative_separation;
+  negative_separation.confirmation.min_separation_m = -1.0;
+  auto prior3 = PriorMap::open(r.prior_dir);
+  ASSERT_TRUE(prior3.ok());
+  auto w3 = RelocalizationWorker::start(std::move(prior3.value()), negative_separation, r.K, kMaxFeatures);
+  ASSERT_FALSE(w3.ok());
+  EXPECT_NE(w3.status().message().find("min_separation_m"), std::string::npos);
 }
 
 }  // namespace

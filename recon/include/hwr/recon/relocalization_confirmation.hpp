@@ -22,6 +22,13 @@
 // the kept pose is the better supported: ORB-refined, then NDT with the polish not tried, then NDT with
 // the polish refused (ties: the later).
 //
+// The confirming attempt must see another place: its camera at least min_separation_m (current world
+// frame) from the held fit's. Two attempts 0.7 m apart match the same view against the same prior
+// keyframes, so a repeated place fools both alike: in hwr-bench reloc (outdoor, seed 4, f4708, no
+// GNSS) a weak fit 49 m off (the container rows repeat) was held at 8.29 m of motion and confirmed by
+// the same wrong pose at 9.01 m. A nearer attempt that agrees leaves the held fit (and its camera)
+// waiting; one that disagrees replaces it as before.
+//
 // Used by RelocalizationWorker (the robot) and hwr-bench reloc, one per run; no allocation.
 
 #include <Eigen/Geometry>
@@ -38,6 +45,9 @@ struct RelocalizationConfirmationConfig {
   // at most); wrong ones metres off.
   double agree_m = 0.10;
   double agree_rad = 1.0 * 3.14159265358979323846 / 180.0;
+  // A confirming attempt's camera is at least this far (current world frame) from the held fit's;
+  // one nearer that agrees leaves the held fit waiting (header: the same view is the same evidence).
+  double min_separation_m = 2.0;
 };
 
 enum class ConfirmationVerdict {
@@ -76,7 +86,8 @@ class RelocalizationConfirmation {
   bool accepted_ = false, pending_ = false;
   Eigen::Isometry3d accepted_T_ = Eigen::Isometry3d::Identity();
   Eigen::Isometry3d pending_T_ = Eigen::Isometry3d::Identity();
-  int pending_support_ = 0;  // support() of the pending result
+  int pending_support_ = 0;                                        // support() of the pending result
+  Eigen::Vector3d pending_p_world_cam_ = Eigen::Vector3d::Zero();  // its query's camera (world, m)
   int superseded_ = 0;
 };
 
