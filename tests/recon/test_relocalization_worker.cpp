@@ -210,11 +210,11 @@ TEST(RelocalizationWorker, GivenAWeakFitFromTheSameViewAgainThenItStaysPendingUn
   config.first_attempt_m = 0.0;
   config.retry_every_m = 0.5;
   config.relocalizer.ndt_fine.degenerate_eigenvalue_ratio = 0.99;
+  const RelocalizationPriors none;
+  const Eigen::Isometry3d I = Eigen::Isometry3d::Identity();
   {
     auto w = start_worker(r, config);
     w->wait_idle();
-    const RelocalizationPriors none;
-    const Eigen::Isometry3d I = Eigen::Isometry3d::Identity();
     ASSERT_TRUE(w->offer(*r.features, r.T_world_cam, *r.local_map, I, 1.0, none));
     w->wait_idle();
     ASSERT_TRUE(w->offer(*r.features, r.T_world_cam, *r.local_map, I, 1.6, none));
@@ -228,8 +228,6 @@ TEST(RelocalizationWorker, GivenAWeakFitFromTheSameViewAgainThenItStaysPendingUn
   config.confirmation.min_separation_m = 0.0;
   auto w = start_worker(r, config);
   w->wait_idle();
-  const RelocalizationPriors none;
-  const Eigen::Isometry3d I = Eigen::Isometry3d::Identity();
   ASSERT_TRUE(w->offer(*r.features, r.T_world_cam, *r.local_map, I, 1.0, none));
   w->wait_idle();
   RelocalizationWorkerStatus s = w->status();
