@@ -47,7 +47,7 @@ robot_and_ground() {
   trap "kill -TERM $ground 2>/dev/null || true" EXIT
   "$bin/hwr-robot/hwr-robot" --source "sim:$out/sim-lab" --quiet --traj-out "$out/trajectory.txt" \
     --timing-out "$out/timing.csv" --map-out "$out/map-store" --cloud-out "$out/map-cloud.bin" \
-    --regions truth --link "$url" --robot-id demo-robot | tee "$out/robot-telemetry.txt"
+    --regions geometry --link "$url" --robot-id demo-robot | tee "$out/robot-telemetry.txt"
   kill -TERM "$ground"
   wait "$ground"
   trap - EXIT
@@ -98,9 +98,9 @@ demo outputs:
       absolute trajectory error against the simulator's ground truth (docs/evaluation.md)
   $out/map-store/
       the map store: closed local maps (segments/seg_NNNNNN: segment.yaml, keyframes.bin,
-      cloud.bin, fine.bin) with their keyframes, ORB + NDT junctions, and the welding regions with
-      their 2 mm fine clouds (the simulator's joints stand in for detections: --regions truth)
-      (docs/reconstruction.md)
+      cloud.bin, fine.bin) with their keyframes, ORB + NDT junctions, and the welding regions the
+      geometric seam detector found (fillet joints; --regions geometry) with their 2 mm fine clouds
+      (docs/reconstruction.md, docs/detection.md)
   $out/map-cloud.bin
       every segment's points in the world frame (16-byte CloudPoint records)
   $out/ground/demo-robot/<run>/maps/
@@ -116,6 +116,7 @@ demo outputs:
       segments in the first run's frame, relocalization.yaml, and updated first-run segments
       (docs/relocalization.md, docs/prior_map_update.md)
 
-welding-region detection (detect/) is the next stage: until it exists the simulator's joints are the
-detections (docs/architecture.md).
+welding-region detection (detect/) finds fillet joints on the keyframes' depth; butt joints, the
+learned detector and the operator's corrections come next (docs/detection.md). With --regions truth
+instead, the simulator's joints are the detections (every plate in step 4).
 MSG

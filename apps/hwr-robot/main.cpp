@@ -45,6 +45,7 @@
 #include "hwr/recon/relocalization_worker.hpp"
 #include "hwr/recon/segment_writer.hpp"
 #include "hwr/recon/truth_weld_regions.hpp"
+#include "hwr/detect/geometric_seam_detector.hpp"
 #if HWR_WITH_SIM
 #include "hwr/sim/run_writer.hpp"
 #include "hwr/sim/scenario.hpp"
@@ -82,7 +83,7 @@ struct Args {
   std::string traj_out, timing_out, gt_out, faults, config, ba_export, map_out, cloud_out;
   std::string link, robot_id = "robot1";
   std::string prior_map;
-  std::string regions;  // "truth": the simulator's joints as welding-region detections
+  std::string regions;  // "truth": the simulator's joints as detections; "geometry": the seam detector
   double link_wait_s = 30.0;
   bool use_imu = true, local_ba = true, full_ba = true;
 };
@@ -94,7 +95,7 @@ void usage() {
       "                 [--traj-out FILE] [--timing-out FILE] [--gt-out FILE] [--faults SPEC]\n"
       "                 [--no-imu] [--no-local-ba] [--no-full-ba] [--ba-export FILE]\n"
       "                 [--map-out DIR] [--cloud-out FILE] [--link URL [--robot-id ID] [--link-wait S]]\n"
-      "                 [--prior-map DIR] [--regions truth]\n"
+      "                 [--prior-map DIR] [--regions truth|geometry]\n"
       "  KIND:WHAT  sim:NAME|FILE.yaml (the simulator renders live), sim:DIR (a run written by hwr-sim),\n"
       "             tum:DIR (TUM RGB-D folder), euroc:DIR (EuRoC folder or mav0)\n"
       "  --config FILE      settings (YAML, sections estimation: and map:; config/estimation.yaml and\n"
@@ -118,8 +119,10 @@ void usage() {
       "                     (docs/relocalization.md)\n"
       "  --regions truth    (sim sources) the simulator's weld joints, seen from each keyframe's true pose,\n"
       "                     as welding-region detections: the map keeps a fine cloud inside them, placed\n"
-      "                     with the keyframe's estimated pose (a perfect detector until detect/ has one;\n"
-      "                     docs/reconstruction.md)\n");
+      "                     with the keyframe's estimated pose (a perfect detector; docs/reconstruction.md)\n"
+      "  --regions geometry the geometric seam detector (detect/, any source with depth):\n"
+      "                     fillet joints found on each keyframe's depth image, placed with its\n"
+      "                     estimated pose (docs/detection.md)\n");
 }
 
 // Replay paced at sensor rate: the timeline is the source's time, advancing with CLOCK_MONOTONIC.
@@ -166,6 +169,10 @@ struct Robot {
   const std::vector<hwr::core::StampedPose>* truth_T_world_cam = nullptr;
   int detected_upto = -1;                          // newest keyframe looked at
   std::vector<hwr::recon::WeldRegion> detections;  // scratch (sized for every joint at start-up)
+  // --regions geometry: the detector and its output list (sized at start-up).
+  hwr::detect::Detector* detector = nullptr;
+  hwr::detect::DetectionList* detected = nullptr;
+  uint64_t detect_errors = 0;
   uint64_t region_detections = 0;
   uint64_t updated_segments = 0, updated_points_deleted = 0, updated_stream_refused = 0;
   hwr::hal::StreamMonitor imu{200.0};
@@ -318,9 +325,57 @@ void detect_truth_regions(Robot* r) {
   r->detected_upto = std::max(r->detected_upto, kfs.newest_id());
 }
 
+// A detection as a welding region of the map: its box in the keyframe's camera frame (the source
+// numbers are shared, detect/detection.hpp).
+hwr::recon::WeldRegion to_weld_region(const hwr::detect::Detection& d) {
+  static_assert(static_cast<int>(hwr::detect::DetectionSource::kGeometry) ==
+                    static_cast<int>(hwr::recon::WeldRegionSource::kGeometry),
+                "detection and weld-region sources share their numbers");
+  hwr::recon::WeldRegion w;
+  w.source = static_cast<hwr::recon::WeldRegionSource>(d.source);
+  w.confidence = d.confidence;
+  hwr::recon::set_weld_region_label(&w, hwr::detect::seam_kind_name(d.kind));
+  w.keyframe_id = d.keyframe_id;
+  w.t_ns = d.t_ns;
+  w.T_cam_region = d.T_cam_box;
+  w.half_size_m = d.half_size_m;
+  return w;
+}
+
+// --regions geometry: each new keyframe whose images are still in the store goes through the seam
+// detector; its regions are placed with the keyframe's estimated pose. Before the keyframes are fused.
+void detect_geometry_regions(Robot* r) {
+  const hwr::estimation::KeyframeStore& kfs = r->estimator->tracker().keyframes();
+  if (kfs.empty()) return;
+  for (int id = std::max(r->detected_upto + 1, kfs.oldest_id()); id <= kfs.newest_id(); ++id) {
+    const hwr::estimation::Keyframe* kf = kfs.get(id);
+    const cv::Mat* depth = kfs.depth_m(id);
+    if (kf == nullptr || depth == nullptr || depth->empty()) continue;
+    hwr::detect::KeyframeView view;
+    view.keyframe_id = id;
+    view.t_ns = kf->t_ns;
+    view.K = r->source->info().intrinsics;
+    view.bgr = kfs.bgr(id);
+    view.depth_m = depth;
+    view.T_world_cam = kf->T_world_cam;
+    const hwr::core::Status s = r->detector->detect(view, r->detected);
+    if (!s.ok()) {
+      if (r->detect_errors++ == 0)
+        HWR_LOG_WARN("robot", "seam detector: keyframe %d: %s", id, s.message().c_str());
+      continue;
+    }
+    for (int i = 0; i < r->detected->size(); ++i) {
+      r->mapper->add_weld_region(to_weld_region((*r->detected)[i]), kf->T_world_cam);
+      ++r->region_detections;
+    }
+  }
+  r->detected_upto = std::max(r->detected_upto, kfs.newest_id());
+}
+
 void mapping_task(void* ctx, int64_t) {
   auto* r = static_cast<Robot*>(ctx);
   if (r->truth_joints != nullptr) detect_truth_regions(r);
+  if (r->detector != nullptr) detect_geometry_regions(r);
   if (r->estimator->local_ba_due()) {
     auto report = r->estimator->run_local_ba();
     if (!report.ok()) HWR_LOG_WARN("robot", "local bundle adjustment: %s", report.status().message().c_str());
@@ -707,6 +762,8 @@ int run(const Args& args) {
   est_cfg.local_ba_enabled = est_cfg.local_ba_enabled && args.local_ba;
   est_cfg.full_ba_at_end = est_cfg.full_ba_at_end && args.full_ba;
   auto estimator = std::make_unique<hwr::estimation::PoseEstimator>(est_cfg, info);
+  // The seam detector's boxes hold what one keyframe saw: a region grows to hold every detection of it.
+  if (args.regions == "geometry") map_cfg.fine.grow_to_cover = true;
   auto mapper = hwr::recon::LocalMapper::create(map_cfg, info.intrinsics, est_cfg.tracker.orb.max_features);
   if (!mapper.ok()) {
     std::fprintf(stderr, "hwr-robot: map: %s\n", mapper.status().message().c_str());
@@ -866,6 +923,21 @@ int run(const Args& args) {
                  "placed with the estimated poses)\n",
                  truth_joints.size());
   }
+  std::unique_ptr<hwr::detect::GeometricSeamDetector> seam_detector;
+  const hwr::detect::GeometricSeamConfig seam_config;
+  hwr::detect::DetectionList seam_detections(seam_config.max_detections);
+  if (args.regions == "geometry") {
+    auto d = hwr::detect::GeometricSeamDetector::create(seam_config, info.intrinsics);
+    if (!d.ok()) {
+      std::fprintf(stderr, "hwr-robot: --regions geometry: %s\n", d.status().message().c_str());
+      return 2;
+    }
+    seam_detector = std::move(d.value());
+    robot.detector = seam_detector.get();
+    robot.detected = &seam_detections;
+    std::fprintf(stderr,
+                 "hwr-robot: welding regions: the geometric seam detector on each keyframe's depth\n");
+  }
   robot.segments = &segments;
   robot.streamer = streamer.get();
   robot.quiet = args.quiet;
@@ -1001,6 +1073,10 @@ int run(const Args& args) {
                   f.regions_added, robot.region_detections, f.detections_merged, f.regions_refused,
                   f.detections_invalid, f.points_inserted, f.keyframes_in_view, m.fine_points_closed,
                   map_cfg.fine.voxels.voxel_m * 1e3, mapper->fine_map().fine_map().counters().refused_full);
+    }
+    if (robot.detect_errors > 0) {
+      std::printf("map: seam detector: %" PRIu64 " keyframes refused (the first is in the log)\n",
+                  robot.detect_errors);
     }
     if (store_writer) {
       const auto w = store_writer->counters();
@@ -1192,8 +1268,9 @@ int main(int argc, char** argv) {
       args.prior_map = value("--prior-map");
     } else if (a == "--regions") {
       args.regions = value("--regions");
-      if (args.regions != "truth") {
-        std::fprintf(stderr, "hwr-robot: --regions: expected 'truth', got '%s'\n", args.regions.c_str());
+      if (args.regions != "truth" && args.regions != "geometry") {
+        std::fprintf(stderr, "hwr-robot: --regions: expected 'truth' or 'geometry', got '%s'\n",
+                     args.regions.c_str());
         return 2;
       }
     } else if (a == "--link") {

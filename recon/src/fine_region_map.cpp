@@ -86,6 +86,9 @@ core::Expected<FineRegionMap> FineRegionMap::create(const FineRegionConfig& conf
     return core::InvalidArgument("fine region map: max_regions must be >= 1, got " +
                                  std::to_string(config.max_regions));
   }
+  if (!(config.max_cover_m > 0) || !(config.cover_max_angle_rad >= 0)) {
+    return core::InvalidArgument("fine region map: max_cover_m must be positive, cover_max_angle_rad >= 0");
+  }
   auto map = VoxelMap::create(config.voxels);
   if (!map.ok()) return core::InvalidArgument("fine region map: " + map.status().message());
   return FineRegionMap(config, K, std::move(map.value()));
@@ -107,8 +110,13 @@ int64_t FineRegionMap::add(const WeldRegion& detection, const Eigen::Isometry3d&
         inside_region_box(T_world_region.inverse(Eigen::Isometry) * a.T_world_region.translation(), h);
     if (!ours && !theirs) continue;
     ++counters_.detections_merged;
+    // The box the anchor does not keep: the detection's, or the region's own when re-anchored.
+    Eigen::Isometry3d T_world_other = T_world_region;
+    Eigen::Vector3d h_other = h;
     if (detection.T_cam_region.translation().norm() + kReanchorM <
         a.region.T_cam_region.translation().norm()) {
+      T_world_other = a.T_world_region;
+      h_other = a.region.half_size_m;
       const uint32_t id = a.region.id;
       a.region = detection;
       a.region.id = id;
@@ -116,6 +124,7 @@ int64_t FineRegionMap::add(const WeldRegion& detection, const Eigen::Isometry3d&
       a.T_region_world = T_world_region.inverse(Eigen::Isometry);
       ++counters_.anchors_moved;
     }
+    if (config_.grow_to_cover) cover(&a, T_world_other, h_other);
     return a.region.id;
   }
   if (static_cast<int>(active_.size()) >= config_.max_regions) {
@@ -130,6 +139,28 @@ int64_t FineRegionMap::add(const WeldRegion& detection, const Eigen::Isometry3d&
   active_.push_back(a);  // within the reserved capacity: no allocation
   ++counters_.regions_added;
   return a.region.id;
+}
+
+void FineRegionMap::cover(Active* a, const Eigen::Isometry3d& T_world_other, const Eigen::Vector3d& h_other) {
+  // The axis-aligned hull, in the region's axes, of its box and the other box's corners.
+  Eigen::Vector3d lo = -a->region.half_size_m, hi = a->region.half_size_m;
+  const Eigen::Isometry3d T_region_other = a->T_region_world * T_world_other;
+  if (std::fabs(T_region_other.linear()(0, 0)) < std::cos(config_.cover_max_angle_rad))
+    return;  // another direction
+  for (int i = 0; i < 8; ++i) {
+    const Eigen::Vector3d corner((i & 4 ? 1 : -1) * h_other.x(), (i & 2 ? 1 : -1) * h_other.y(),
+                                 (i & 1 ? 1 : -1) * h_other.z());
+    const Eigen::Vector3d c = T_region_other * corner;
+    lo = lo.cwiseMin(c);
+    hi = hi.cwiseMax(c);
+  }
+  if ((hi - lo).maxCoeff() > config_.max_cover_m) return;  // not one joint: keep the box
+  const Eigen::Vector3d offset_region = 0.5 * (lo + hi);
+  a->region.half_size_m = 0.5 * (hi - lo);
+  a->region.T_cam_region.translation() += a->region.T_cam_region.linear() * offset_region;
+  a->T_world_region.translation() += a->T_world_region.linear() * offset_region;
+  a->T_region_world = a->T_world_region.inverse(Eigen::Isometry);
+  ++counters_.boxes_grown;
 }
 
 void FineRegionMap::settle(int32_t keyframe_id, const Eigen::Isometry3d& T_world_cam) {

@@ -235,6 +235,50 @@ TEST(FineRegionMap, GivenANearerDetectionOrASettledPoseThenTheRegionIsPlacedAgai
   EXPECT_TRUE(fine->T_world_region(0).isApprox(T_world_settled * near.T_cam_region, 1e-12));
 }
 
+// grow_to_cover (the geometric detector's boxes hold what one view saw): a merged detection's box
+// extends the region's, in the region's axes, re-anchored or not; far apart boxes do not.
+TEST(FineRegionMap, GivenGrowToCoverThenAMergedDetectionExtendsTheRegionsBox) {
+  const hal::PinholeIntrinsics K = intrinsics();
+  FineRegionConfig c = small_config();
+  c.grow_to_cover = true;
+  c.max_cover_m = 1.0;
+  auto fine = FineRegionMap::create(c, K);
+  ASSERT_TRUE(fine.ok());
+  const Eigen::Isometry3d T_world_cam = pose(0.2, Eigen::Vector3d(1, 2, 1));
+  ASSERT_EQ(fine->add(region_at(Eigen::Vector3d(0, 0, 1.5), Eigen::Vector3d(0.15, 0.1, 0.1)), T_world_cam),
+            0);
+  // 10 cm further along x (its centre inside the first box): the box now spans x in [-0.15, 0.25].
+  ASSERT_EQ(fine->add(region_at(Eigen::Vector3d(0.1, 0, 1.5), Eigen::Vector3d(0.15, 0.1, 0.1)), T_world_cam),
+            0);
+  EXPECT_NEAR(fine->region(0).half_size_m.x(), 0.2, 1e-12);
+  EXPECT_NEAR(fine->region(0).half_size_m.y(), 0.1, 1e-12);
+  EXPECT_TRUE(
+      fine->T_world_region(0).translation().isApprox(T_world_cam * Eigen::Vector3d(0.05, 0, 1.5), 1e-12));
+  EXPECT_TRUE(fine->region(0).T_cam_region.translation().isApprox(Eigen::Vector3d(0.05, 0, 1.5), 1e-12));
+  // A nearer view re-anchors and keeps what the region held: x in [-0.15, 0.25] still inside.
+  const Eigen::Isometry3d T_world_near = T_world_cam * Eigen::Translation3d(0, 0, 0.5);
+  ASSERT_EQ(fine->add(region_at(Eigen::Vector3d(0.0, 0, 1.0), Eigen::Vector3d(0.1, 0.1, 0.1)), T_world_near),
+            0);
+  EXPECT_EQ(fine->counters().anchors_moved, 1u);
+  const Eigen::Isometry3d T_region_world = fine->T_world_region(0).inverse();
+  for (double x : {-0.15, 0.25}) {
+    const Eigen::Vector3d p = T_region_world * (T_world_cam * Eigen::Vector3d(x, 0, 1.5));
+    EXPECT_LE(std::fabs(p.x()), fine->region(0).half_size_m.x() + 1e-9) << x;
+  }
+  EXPECT_EQ(fine->counters().boxes_grown, 2u);
+  // A box that holds the region's centre but would stretch it beyond max_cover_m: merged, not grown.
+  const Eigen::Vector3d before = fine->region(0).half_size_m;
+  ASSERT_EQ(fine->add(region_at(Eigen::Vector3d(0.05, 0, 1.5), Eigen::Vector3d(0.9, 0.1, 0.1)), T_world_cam),
+            0);
+  EXPECT_TRUE(fine->region(0).half_size_m.isApprox(before, 1e-12));
+  // A box across the region's axis (another seam's direction): merged, not grown.
+  ASSERT_EQ(
+      fine->add(region_at(Eigen::Vector3d(0.05, 0, 1.5), Eigen::Vector3d(0.3, 0.1, 0.1), 1.2), T_world_cam),
+      0);
+  EXPECT_TRUE(fine->region(0).half_size_m.isApprox(before, 1e-12));
+  EXPECT_EQ(fine->counters().boxes_grown, 2u);
+}
+
 TEST(FineRegionMap, GivenACreatedMapThenAddingAndInsertingAllocateNothing) {
   const hal::PinholeIntrinsics K = intrinsics();
   auto fine = FineRegionMap::create(small_config(), K);

@@ -45,12 +45,20 @@ struct FineRegionConfig {
   KeyframeCloudConfig cloud{0.2f, 3.5f, 1, 0.05f, true};
   VoxelMapConfig voxels{0.002, 2'000'000};
   int max_regions = 64;  // active at once; a new region when the table is full is refused and counted
+  // A region's box grows, in its own axes, to hold every detection merged into it whose box x axis
+  // (a seam's direction) is within cover_max_angle_rad of the region's, at most max_cover_m along
+  // each axis. For detectors whose boxes hold only what one view saw (the geometric seam detector: a
+  // seam cut by the image border); the simulator's truth boxes are whole.
+  bool grow_to_cover = false;
+  double max_cover_m = 2.0;  // the sim's longest joint is 1.5 m
+  double cover_max_angle_rad = 0.175;
 };
 
 struct FineRegionCounters {
   uint64_t regions_added = 0;
   uint64_t detections_merged = 0;   // a detection of a region already active
   uint64_t anchors_moved = 0;       // ... seen from nearer: the region re-anchored on it
+  uint64_t boxes_grown = 0;         // ... and its box grown to hold the detection (grow_to_cover)
   uint64_t regions_refused = 0;     // the table was full
   uint64_t detections_invalid = 0;  // non-positive or non-finite half sizes, a non-rigid pose
   uint64_t keyframes_in_view = 0;   // keyframes that saw at least one active region
@@ -113,6 +121,8 @@ class FineRegionMap {
     bool in_view = false;
   };
   FineRegionMap(const FineRegionConfig& config, const hal::PinholeIntrinsics& K, VoxelMap map);
+  // grow_to_cover: a's box grows to hold the other box (T_world_other, half sizes h_other).
+  void cover(Active* a, const Eigen::Isometry3d& T_world_other, const Eigen::Vector3d& h_other);
 
   FineRegionConfig config_;
   hal::PinholeIntrinsics K_;

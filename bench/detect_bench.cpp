@@ -1,0 +1,250 @@
+// hwr-bench detect: the geometric seam detector (issue #7) on the simulator's scenarios, per keyframe,
+// against the seams of the simulator's ground truth.
+//
+//   hwr-bench detect [--sequences lab,outdoor] [--step N] [--duration S] [--max-range M]
+//
+// Every --step-th frame is a keyframe here: its depth image (rendered with the simulator's stereo
+// noise) goes to GeometricSeamDetector at the frame's true pose (the detector's accuracy, not the
+// tracker's). The true seams a frame sees are the parts visible_seam_part() finds (in the image, in
+// range, from the fillet's open side, not hidden); detections are matched to them by score_seams()
+// (detect/seam_metrics.hpp). precision = matched detections / detections over all frames (a frame
+// with no joint in view still counts its detections), recall = matched seams / seams in view;
+// endpoint error over the ends seen on both sides; time = thread CPU of detect(). Butt joints are
+// not detected yet, so the recall over all seams is printed beside the fillets' own. The figures
+// are per keyframe: the fusion of several keyframes (the issue's endpoint goal) is not built yet.
+
+#include "bench_command.hpp"
+
+#if HWR_WITH_SIM
+#include <algorithm>
+#include <cstdio>
+#include <cstdlib>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "bench_sequences.hpp"
+#include "thread_clock.hpp"
+#include "hwr/detect/geometric_seam_detector.hpp"
+#include "hwr/detect/seam_metrics.hpp"
+#include "hwr/recon/plate_fit.hpp"
+
+namespace hwr::bench {
+
+namespace {
+
+double median(std::vector<double> v) {
+  if (v.empty()) return 0.0;
+  std::sort(v.begin(), v.end());
+  return v[v.size() / 2];
+}
+
+double percentile(std::vector<double> v, double q) {
+  if (v.empty()) return 0.0;
+  std::sort(v.begin(), v.end());
+  return v[std::min(v.size() - 1, static_cast<size_t>(q * static_cast<double>(v.size() - 1) + 0.5))];
+}
+
+// The truth's seams as segments; a fillet's open side is the horizontal direction from its seam
+// towards its base plate's centre (the plate whose name ends in "/base").
+std::vector<detect::SeamSegment> truth_seams(const recon::WeldGroundTruth& gt) {
+  std::vector<detect::SeamSegment> out;
+  for (const recon::SeamTruth& s : gt.seams) {
+    detect::SeamSegment seg;
+    seg.a = s.start_world;
+    seg.b = s.end_world;
+    seg.kind = s.type == recon::SeamType::kFillet ? detect::SeamKind::kFillet : detect::SeamKind::kButt;
+    if (seg.kind == detect::SeamKind::kFillet) {
+      for (const recon::PlateTruth& p : gt.plates) {
+        const bool base = p.name.size() >= 5 && p.name.compare(p.name.size() - 5, 5, "/base") == 0;
+        if (!base || (p.name != s.plates[0] && p.name != s.plates[1])) continue;
+        const Eigen::Vector3d u = (s.end_world - s.start_world).normalized();
+        Eigen::Vector3d side = p.T_world_plate.translation() - s.start_world;
+        side -= side.dot(u) * u;
+        side.z() = 0.0;
+        if (side.norm() > 1e-6) seg.open_side = side.normalized();
+      }
+    }
+    out.push_back(seg);
+  }
+  return out;
+}
+
+struct Tally {
+  int frames = 0, frames_with_seams = 0, detections = 0, matched = 0;
+  int truths[2] = {0, 0}, truths_matched[2] = {0, 0};  // per SeamKind
+  std::vector<double> endpoint_mm, lateral_mm, detect_ms;
+};
+
+int run_detect(int argc, char** argv) {
+  std::string sequences = "lab,outdoor";
+  int step = 10;
+  double duration_s = 0.0, max_range_m = 3.0;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    auto value = [&](const char* what) -> std::string {
+      if (i + 1 >= argc) {
+        std::fprintf(stderr, "hwr-bench detect: %s needs a value\n", what);
+        std::exit(2);
+      }
+      return argv[++i];
+    };
+    if (a == "--sequences") {
+      sequences = value("--sequences");
+    } else if (a == "--step") {
+      step = std::atoi(value("--step").c_str());
+      if (step < 1) {
+        std::fprintf(stderr, "hwr-bench detect: --step must be >= 1\n");
+        return 2;
+      }
+    } else if (a == "--duration") {
+      duration_s = std::atof(value("--duration").c_str());
+    } else if (a == "--max-range") {
+      max_range_m = std::atof(value("--max-range").c_str());
+    } else {
+      std::fprintf(
+          stderr,
+          "usage: hwr-bench detect [--sequences lab,outdoor] [--step N] [--duration S] [--max-range M]\n");
+      return a == "--help" || a == "-h" ? 0 : 2;
+    }
+  }
+  std::vector<std::string> names;
+  std::stringstream ss(sequences);
+  for (std::string n; std::getline(ss, n, ',');)
+    if (!n.empty()) names.push_back(n);
+
+  const detect::GeometricSeamConfig config;
+  std::printf(
+      "hwr-bench detect: the geometric seam detector per keyframe (every %d-th frame, true poses), seams in "
+      "view "
+      "within %.1f m; match: %.0f deg, %.0f mm, %.0f %% overlap\n",
+      step, max_range_m, detect::SeamMatchConfig{}.max_angle_rad * 57.29577951308232,
+      detect::SeamMatchConfig{}.max_lateral_m * 1e3, detect::SeamMatchConfig{}.min_overlap * 100);
+  std::printf("%-10s %7s %9s %7s %9s %9s %9s %13s %13s %11s\n", "sequence", "frames", "w/ seams", "dets",
+              "precision", "recall", "fillets", "endpoint mm", "lateral mm", "detect ms");
+  Tally all;
+  std::vector<std::string> keys;
+  auto report = [&](const std::string& label, const Tally& x) {
+    const int truths_all = x.truths[0] + x.truths[1];
+    const double precision = x.detections > 0 ? static_cast<double>(x.matched) / x.detections : 1.0;
+    const double recall =
+        truths_all > 0 ? static_cast<double>(x.truths_matched[0] + x.truths_matched[1]) / truths_all : 0.0;
+    const double recall_fillet =
+        x.truths[0] > 0 ? static_cast<double>(x.truths_matched[0]) / x.truths[0] : 0.0;
+    std::printf("%-10s %7d %9d %7d %9.3f %9.3f %9.3f %6.1f / %-5.1f %6.1f / %-5.1f %5.2f / %-5.2f\n",
+                label.c_str(), x.frames, x.frames_with_seams, x.detections, precision, recall, recall_fillet,
+                median(x.endpoint_mm), percentile(x.endpoint_mm, 0.9), median(x.lateral_mm),
+                percentile(x.lateral_mm, 0.9), median(x.detect_ms), percentile(x.detect_ms, 0.95));
+    std::printf("%-10s seams in view: %d fillet (%d matched), %d butt (%d matched); ends compared %zu\n", "",
+                x.truths[0], x.truths_matched[0], x.truths[1], x.truths_matched[1], x.endpoint_mm.size());
+    char buf[512];
+    const std::string p = label == "all" ? "" : label + "_";
+    std::snprintf(
+        buf, sizeof(buf),
+        "seam_%sprecision=%.3f\nseam_%srecall=%.3f\nseam_%srecall_fillet=%.3f\nseam_%sendpoint_mm=%.2f\n"
+        "seam_%slateral_mm=%.2f\ndetect_%sms_median=%.3f\ndetect_%sms_p95=%.3f",
+        p.c_str(), precision, p.c_str(), recall, p.c_str(), recall_fillet, p.c_str(), median(x.endpoint_mm),
+        p.c_str(), median(x.lateral_mm), p.c_str(), median(x.detect_ms), p.c_str(),
+        percentile(x.detect_ms, 0.95));
+    keys.push_back(buf);
+  };
+  for (const std::string& name : names) {
+    auto seq = open_sequence(name, duration_s);
+    if (!seq.ok()) {
+      std::fprintf(stderr, "hwr-bench detect: %s: %s\n", name.c_str(), seq.status().message().c_str());
+      return 1;
+    }
+    auto gt = recon::parse_weld_groundtruth(seq->weld_truth_yaml, name + " weld truth");
+    if (!gt.ok()) {
+      std::fprintf(stderr, "hwr-bench detect: %s\n", gt.status().message().c_str());
+      return 1;
+    }
+    const std::vector<detect::SeamSegment> truths = truth_seams(gt.value());
+    const hal::PinholeIntrinsics& K = seq->log.info.intrinsics;
+    auto detector = detect::GeometricSeamDetector::create(config, K);
+    if (!detector.ok()) {
+      std::fprintf(stderr, "hwr-bench detect: %s\n", detector.status().message().c_str());
+      return 2;
+    }
+    if (seq->groundtruth.size() != seq->log.frame_t_ns.size()) {
+      std::fprintf(stderr, "hwr-bench detect: %s: %zu truth poses for %zu frames\n", name.c_str(),
+                   seq->groundtruth.size(), seq->log.frame_t_ns.size());
+      return 1;
+    }
+    Tally t;
+    hal::RgbdFrame frame;
+    detect::DetectionList dets(config.max_detections);
+    std::vector<detect::SeamSegment> visible, found;
+    for (size_t i = 0; i < seq->log.frame_t_ns.size(); i += static_cast<size_t>(step)) {
+      const core::Status loaded = seq->log.load_frame(i, &frame);
+      if (!loaded.ok()) {
+        std::fprintf(stderr, "hwr-bench detect: %s frame %zu: %s\n", name.c_str(), i,
+                     loaded.message().c_str());
+        return 1;
+      }
+      const Eigen::Isometry3d& T_world_cam = seq->groundtruth[i].T_world_body;
+      detect::KeyframeView view;
+      view.keyframe_id = static_cast<int32_t>(i);
+      view.t_ns = frame.t_ns;
+      view.K = K;
+      view.bgr = &frame.bgr;
+      view.depth_m = &frame.depth_m;
+      view.T_world_cam = T_world_cam;
+      const double t0 = thread_cpu_s();
+      const core::Status s = (*detector)->detect(view, &dets);
+      t.detect_ms.push_back(1e3 * (thread_cpu_s() - t0));
+      if (!s.ok()) {
+        std::fprintf(stderr, "hwr-bench detect: %s frame %zu: %s\n", name.c_str(), i, s.message().c_str());
+        return 1;
+      }
+      visible.clear();
+      for (const detect::SeamSegment& truth : truths) {
+        detect::SeamSegment part;
+        if (detect::visible_seam_part(truth, T_world_cam, K, frame.depth_m, config.noise,
+                                      config.cloud.min_depth_m, max_range_m, 0.1, &part))
+          visible.push_back(part);
+      }
+      found.clear();
+      for (int k = 0; k < dets.size(); ++k) found.push_back(detect::seam_of(dets[k]));
+      const detect::SeamScore score = detect::score_seams(found, visible);
+      ++t.frames;
+      t.frames_with_seams += visible.empty() ? 0 : 1;
+      t.detections += score.detections;
+      t.matched += score.matched;
+      for (const detect::SeamSegment& v : visible) ++t.truths[static_cast<int>(v.kind)];
+      for (const detect::SeamMatch& m : score.matches) {
+        ++t.truths_matched[static_cast<int>(visible[static_cast<size_t>(m.truth)].kind)];
+        t.lateral_mm.push_back(1e3 * m.lateral_m);
+        for (int e = 0; e < 2; ++e)
+          if (m.endpoint_valid[e]) t.endpoint_mm.push_back(1e3 * m.endpoint_m[e]);
+      }
+    }
+    report(name, t);
+    all.frames += t.frames;
+    all.frames_with_seams += t.frames_with_seams;
+    all.detections += t.detections;
+    all.matched += t.matched;
+    for (int k = 0; k < 2; ++k) {
+      all.truths[k] += t.truths[k];
+      all.truths_matched[k] += t.truths_matched[k];
+    }
+    all.endpoint_mm.insert(all.endpoint_mm.end(), t.endpoint_mm.begin(), t.endpoint_mm.end());
+    all.lateral_mm.insert(all.lateral_mm.end(), t.lateral_mm.begin(), t.lateral_mm.end());
+    all.detect_ms.insert(all.detect_ms.end(), t.detect_ms.begin(), t.detect_ms.end());
+  }
+  report("all", all);
+  for (const std::string& k : keys) std::printf("%s\n", k.c_str());
+  return 0;
+}
+
+}  // namespace
+
+HWR_BENCH_COMMAND(
+    detect, "detect",
+    "welding seams (issue #7): the geometric detector per keyframe against the sim's seams, "
+    "precision, recall, endpoint error, time [--sequences lab,outdoor] [--step N] [--duration S]",
+    run_detect);
+
+}  // namespace hwr::bench
+
+#endif  // HWR_WITH_SIM

@@ -1,0 +1,71 @@
+#pragma once
+// Fillet (T) joints from planes (issue #7 item 2): a web plate standing on a base plate. Among the
+// segmented planes, a base (normal within max_base_tilt_rad of world up) and a web (perpendicular to
+// it within max_perpendicular_dev_rad) that meet (cells of one within adjacency_cells of the other's:
+// the cells across the corner are not planar) in a concave corner (each plane's centroid on the
+// camera side of the other) are a candidate. The seam is the planes' intersection line, refitted from
+// the points of each plate in a band next to it (band_near_m to band_far_m from the other plate's
+// plane): the base plate and the bench under it merge into one plane (a 1 cm plate is within the
+// depth noise), and the band keeps the seam on the plate's own surface. The seam's ends are the
+// end_quantile / 1 - end_quantile points of the web's band along the line, clipped to the base's.
+// Gates (precision): length, web height, and a free top edge — above the web's top edge the depth
+// must be farther than the web by free_min_jump_m, or absent: a thin plate stands free, while a box on
+// the floor (its top face recedes just behind the front face's edge) or a wall does not. Camera frame
+// throughout; sized at create(), find() allocates nothing.
+
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "hwr/core/status.hpp"
+#include "hwr/detect/depth_noise.hpp"
+#include "hwr/detect/detection.hpp"
+#include "hwr/detect/organized_cloud.hpp"
+#include "hwr/detect/plane_segmentation.hpp"
+
+namespace hwr::detect {
+
+struct FilletConfig {
+  double max_perpendicular_dev_rad = 0.21;  // |90 deg - angle(base, web)| <= 12 deg
+  double max_base_tilt_rad = 0.35;          // base normal within 20 deg of world up
+  int adjacency_cells = 2;
+  int min_adjacent_cells = 3;
+  double band_near_m = 0.01;  // the corner's mixed centimetre is skipped
+  double band_far_m = 0.06;
+  double band_inlier_sigmas = 3.0;  // a band point lies within this many sigma(z) (+ 2 mm) of its plate
+  int min_band_points = 30;         // per plate
+  double min_length_m = 0.15, max_length_m = 2.0;
+  double min_web_height_m = 0.05, max_web_height_m = 0.5;
+  double web_height_quantile = 0.98;
+  double free_probe_above_m = 0.03;  // probes this far above the web's top edge, in the web's plane
+  double free_min_jump_m = 0.05;
+  double min_free_fraction = 0.6;  // of the probes that land in the image
+  int free_probes = 16;
+  double end_quantile = 0.005;
+  int end_margin_px = 12;         // an end projecting within this of the border is not observed
+  double max_base_width_m = 0.6;  // the box's extent across the seam on the base side, at most
+  double box_margin_m = 0.05;     // the box around the plates grows by this (as the truth's boxes)
+};
+
+class FilletFinder {
+ public:
+  // max_points: the most grid points a cloud has (OrganizedCloud width * height). Errors
+  // (kInvalidArgument): a config value out of range, max_points < 1.
+  static core::Expected<FilletFinder> create(const FilletConfig& config, const DepthNoiseModel& noise,
+                                             int max_points);
+
+  // Appends the fillets among the planes to *out (camera-frame members; place_in_world() is the
+  // caller's). up_cam: world up in the camera frame (unit). Returns how many were appended (stops when
+  // out is full).
+  int find(const OrganizedCloud& cloud, const PlaneSegmenter& planes, const Eigen::Vector3d& up_cam,
+           DetectionList* out);
+
+  const FilletConfig& config() const { return config_; }
+
+ private:
+  FilletConfig config_;
+  DepthNoiseModel noise_;
+  std::vector<float> along_web_, along_base_, heights_, widths_;  // scratch, max_points each
+};
+
+}  // namespace hwr::detect

@@ -1,0 +1,98 @@
+#include "hwr/detect/geometric_seam_detector.hpp"
+
+#include <cmath>
+#include <string>
+
+namespace hwr::detect {
+
+namespace {
+
+// Whether detection b repeats a's seam: nearly parallel lines, b's midpoint near a's line, and
+// overlapping extents along it.
+bool same_seam(const Detection& a, const Detection& b, double max_angle_rad, double max_distance_m) {
+  const Eigen::Vector3d da = a.seam_cam[1] - a.seam_cam[0];
+  const Eigen::Vector3d db = b.seam_cam[1] - b.seam_cam[0];
+  const double la = da.norm(), lb = db.norm();
+  if (la < 1e-9 || lb < 1e-9) return false;
+  const Eigen::Vector3d ua = da / la;
+  if (std::acos(std::min(1.0, std::fabs(ua.dot(db / lb)))) > max_angle_rad) return false;
+  const Eigen::Vector3d mid_b = 0.5 * (b.seam_cam[0] + b.seam_cam[1]);
+  const Eigen::Vector3d off = mid_b - a.seam_cam[0];
+  if ((off - off.dot(ua) * ua).norm() > max_distance_m) return false;
+  const double t0 = ua.dot(b.seam_cam[0] - a.seam_cam[0]), t1 = ua.dot(b.seam_cam[1] - a.seam_cam[0]);
+  return std::max(t0, t1) > 0 && std::min(t0, t1) < la;
+}
+
+}  // namespace
+
+GeometricSeamDetector::GeometricSeamDetector(const GeometricSeamConfig& config,
+                                             const hal::PinholeIntrinsics& K, OrganizedCloud cloud,
+                                             PlaneSegmenter planes, FilletFinder fillets)
+    : config_(config),
+      K_(K),
+      cloud_(std::move(cloud)),
+      planes_(std::move(planes)),
+      fillets_(std::move(fillets)),
+      candidates_(config.max_detections * 4) {}
+
+core::Expected<std::unique_ptr<GeometricSeamDetector>> GeometricSeamDetector::create(
+    const GeometricSeamConfig& config, const hal::PinholeIntrinsics& K) {
+  if (config.max_detections < 1)
+    return core::InvalidArgument("geometric seam detector: max_detections must be >= 1");
+  if (!(config.duplicate_angle_rad >= 0) || !(config.duplicate_distance_m >= 0)) {
+    return core::InvalidArgument(
+        "geometric seam detector: duplicate_angle_rad and duplicate_distance_m must be >= 0");
+  }
+  auto cloud = OrganizedCloud::create(config.cloud, K);
+  if (!cloud.ok()) return cloud.status();
+  auto planes = PlaneSegmenter::create(config.planes, config.noise, cloud->width(), cloud->height());
+  if (!planes.ok()) return planes.status();
+  auto fillets = FilletFinder::create(config.fillet, config.noise, cloud->width() * cloud->height());
+  if (!fillets.ok()) return fillets.status();
+  return std::unique_ptr<GeometricSeamDetector>(new GeometricSeamDetector(
+      config, K, std::move(cloud.value()), std::move(planes.value()), std::move(fillets.value())));
+}
+
+core::Status GeometricSeamDetector::detect(const KeyframeView& view, DetectionList* out) {
+  if (out == nullptr) return core::InvalidArgument("geometric seam detector: no output list");
+  out->clear();
+  stats_ = GeometricSeamStats{};
+  if (view.depth_m == nullptr || view.depth_m->empty()) {
+    return core::InvalidArgument("geometric seam detector: keyframe " + std::to_string(view.keyframe_id) +
+                                 " has no depth image");
+  }
+  if (view.K.width != K_.width || view.K.height != K_.height || view.K.fx != K_.fx || view.K.fy != K_.fy ||
+      view.K.cx != K_.cx || view.K.cy != K_.cy) {
+    return core::InvalidArgument("geometric seam detector: the keyframe's intrinsics are not the detector's");
+  }
+  core::Status s = cloud_.build(*view.depth_m);
+  if (!s.ok()) return s;
+  stats_.valid_points = cloud_.valid_count();
+  s = planes_.segment(cloud_);
+  if (!s.ok()) return s;
+  stats_.planes = planes_.plane_count();
+  const Eigen::Vector3d up_cam = view.T_world_cam.linear().transpose() * Eigen::Vector3d::UnitZ();
+  candidates_.clear();
+  stats_.candidates = fillets_.find(cloud_, planes_, up_cam, &candidates_);
+  candidates_.keep_most_confident(candidates_.capacity());
+  for (int i = 0; i < candidates_.size(); ++i) {
+    bool duplicate = false;
+    for (int j = 0; j < out->size() && !duplicate; ++j) {
+      duplicate =
+          same_seam((*out)[j], candidates_[i], config_.duplicate_angle_rad, config_.duplicate_distance_m);
+    }
+    if (duplicate) {
+      ++stats_.duplicates;
+      continue;
+    }
+    Detection d = candidates_[i];
+    d.keyframe_id = view.keyframe_id;
+    d.t_ns = view.t_ns;
+    place_in_world(view.T_world_cam, &d);
+    if (!out->push(d)) break;
+    if (out->size() >= config_.max_detections) break;
+  }
+  return core::Status();
+}
+
+}  // namespace hwr::detect
