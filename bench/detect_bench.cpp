@@ -79,7 +79,7 @@ struct Tally {
 int run_detect(int argc, char** argv) {
   std::string sequences = "lab,outdoor";
   int step = 10;
-  double duration_s = 0.0, max_range_m = 3.0;
+  double duration_s = 0.0, max_range_m = 3.5;  // the detector's depth limit (OrganizedCloudConfig)
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     auto value = [&](const char* what) -> std::string {

@@ -153,12 +153,14 @@ int FilletFinder::find(const OrganizedCloud& cloud, const PlaneSegmenter& planes
             const Eigen::Vector3d p = cloud.point(x, y).cast<double>();
             const double t = dir.dot(p - p0);
             const double s_base = base.signed_distance(p), s_web = web.signed_distance(p);
-            const double tol = c.band_inlier_sigmas * noise_.sigma_m(p.z()) + 0.002;
-            const bool in_web_band =
-                std::fabs(s_web) <= tol && s_base >= c.band_near_m && s_base <= c.band_far_m;
+            const double sigma = noise_.sigma_m(p.z());
+            const double tol = c.band_inlier_sigmas * sigma + 0.002;
+            const double near = std::max(c.band_near_m, c.band_near_sigmas * sigma);
+            const double far = near + (c.band_far_m - c.band_near_m);
+            const bool in_web_band = std::fabs(s_web) <= tol && s_base >= near && s_base <= far;
             if (in_web_band) along_web_[n_along++] = static_cast<float>(t);
             if (t < t_lo || t > t_hi) continue;
-            if (std::fabs(s_base) <= tol && s_web >= c.band_near_m && s_web <= c.band_far_m) m_base.add(p);
+            if (std::fabs(s_base) <= tol && s_web >= near && s_web <= far) m_base.add(p);
             if (in_web_band) m_web.add(p);
           }
         }
@@ -171,9 +173,20 @@ int FilletFinder::find(const OrganizedCloud& cloud, const PlaneSegmenter& planes
           fitted = false;
           break;
         }
-        const PlaneFit base1 = fit_plane(m_base), web1 = fit_plane(m_web);
-        if (!base1.ok || !web1.ok ||
-            perpendicular_dev_rad(base1.normal, web1.normal) > c.max_perpendicular_dev_rad) {
+        PlaneFit base1 = fit_plane(m_base), web1 = fit_plane(m_web);
+        // A narrow band seen from afar tilts with the noise: where its plane turns from the whole
+        // plate's by more than band_max_turn_rad, only its offset is refitted (the whole plate's
+        // normal is the better measured one).
+        auto offset_only_if_turned = [&](const PlaneFit& whole, const PlaneMoments& m, PlaneFit* band) {
+          if (band->ok && std::acos(std::min(1.0, band->normal.dot(whole.normal))) <= c.band_max_turn_rad)
+            return;
+          *band = whole;
+          band->centroid = m.sum / m.n;
+          band->d = whole.normal.dot(band->centroid);
+        };
+        offset_only_if_turned(base0, m_base, &base1);
+        offset_only_if_turned(web0, m_web, &web1);
+        if (perpendicular_dev_rad(base1.normal, web1.normal) > c.max_perpendicular_dev_rad) {
           fitted = false;
           break;
         }
@@ -190,12 +203,13 @@ int FilletFinder::find(const OrganizedCloud& cloud, const PlaneSegmenter& planes
           if (!cloud.valid(x, y)) continue;
           const Eigen::Vector3d p = cloud.point(x, y).cast<double>();
           const double s_base = base.signed_distance(p), s_web = web.signed_distance(p);
-          const double tol = c.band_inlier_sigmas * noise_.sigma_m(p.z()) + 0.002;
+          const double sigma = noise_.sigma_m(p.z());
+          const double tol = c.band_inlier_sigmas * sigma + 0.002;
+          const double near = std::max(c.band_near_m, c.band_near_sigmas * sigma);
+          const double far = near + (c.band_far_m - c.band_near_m);
           const float t = static_cast<float>(dir.dot(p - p0));
-          if (std::fabs(s_web) <= tol && s_base >= c.band_near_m && s_base <= c.band_far_m)
-            along_web_[n_web++] = t;
-          if (std::fabs(s_base) <= tol && s_web >= c.band_near_m && s_web <= c.band_far_m)
-            along_base_[n_base++] = t;
+          if (std::fabs(s_web) <= tol && s_base >= near && s_base <= far) along_web_[n_web++] = t;
+          if (std::fabs(s_base) <= tol && s_web >= near && s_web <= far) along_base_[n_base++] = t;
         }
       }
       if (n_web < c.min_band_points || n_base < c.min_band_points) continue;
@@ -219,10 +233,11 @@ int FilletFinder::find(const OrganizedCloud& cloud, const PlaneSegmenter& planes
           const double t = dir.dot(p - p0);
           if (t < t0 || t > t1) continue;
           const double s_base = base.signed_distance(p), s_web = web.signed_distance(p);
-          const double tol = c.band_inlier_sigmas * noise_.sigma_m(p.z()) + 0.002;
-          if (std::fabs(s_web) <= tol && s_base >= c.band_near_m)
-            heights_[n_h++] = static_cast<float>(s_base);
-          if (std::fabs(s_base) <= tol && s_web >= c.band_near_m && s_web <= c.max_base_width_m)
+          const double sigma = noise_.sigma_m(p.z());
+          const double tol = c.band_inlier_sigmas * sigma + 0.002;
+          const double near = std::max(c.band_near_m, c.band_near_sigmas * sigma);
+          if (std::fabs(s_web) <= tol && s_base >= near) heights_[n_h++] = static_cast<float>(s_base);
+          if (std::fabs(s_base) <= tol && s_web >= near && s_web <= c.max_base_width_m)
             widths_[n_w++] = static_cast<float>(s_web);
         }
       }
@@ -245,7 +260,13 @@ int FilletFinder::find(const OrganizedCloud& cloud, const PlaneSegmenter& planes
         const int gy =
             std::clamp(static_cast<int>(std::lround(v / cloud.stride_px())), 0, cloud.height() - 1);
         ++observed;
-        if (!cloud.valid(gx, gy) || cloud.point(gx, gy).z() > q.z() + c.free_min_jump_m) ++free;
+        // Behind a box's front face its top recedes: the ray through q meets a surface at the edge's
+        // height after probe_above / sin(elevation) along it. Past a free plate's edge it meets the
+        // support or the background, much farther: the jump must be twice the box top's.
+        const Eigen::Vector3d ray = q.normalized();
+        const double box_top_run_m = c.free_probe_above_m / std::max(0.05, std::fabs(ray.dot(up_web)));
+        const double min_jump_m = std::max(c.free_min_jump_m, 2.0 * box_top_run_m * ray.z());
+        if (!cloud.valid(gx, gy) || cloud.point(gx, gy).z() > q.z() + min_jump_m) ++free;
       }
       if (observed * 4 < c.free_probes || free < c.min_free_fraction * observed) continue;
 

@@ -152,6 +152,30 @@ TEST(GeometricSeamDetector, GivenStereoLikeNoiseThenTheSeamIsFoundWithinMillimet
   EXPECT_LT(ends[ends.size() / 2], 0.004);
 }
 
+// A floor fillet (the sim's floor_fillet_c: 1.2 m, 1.5 cm plates, a 30 cm web) from 1.5 to 2.5 m
+// with the stereo noise: far away sigma(z) (13 mm at 2.9 m) is near the plates' thickness, and the
+// bands and the refit scale with it.
+TEST(GeometricSeamDetector, GivenAFloorFilletUpTo2point5mAwayWithNoiseThenItIsFound) {
+  const hal::PinholeIntrinsics K = testing::vga_intrinsics();
+  testing::RenderScene scene;
+  scene.has_floor = true;
+  const testing::FilletJoint j = testing::make_fillet({-0.6, 0.2, 0.015}, 0.0, 1.2, 0.4, 0.3, 0.015, 2, 3);
+  scene.boxes = {j.base, j.web};
+  auto detector = make_detector(K);
+  ASSERT_NE(detector, nullptr);
+  for (double distance_m : {1.5, 2.0, 2.5}) {
+    const Eigen::Isometry3d T = testing::look_at({0, -distance_m, 1.45}, {0, 0, 0.1});
+    testing::RenderOptions o;
+    o.add_noise = true;
+    const testing::RenderedDepth r = testing::render_depth(scene, K, T, o);
+    DetectionList out(8);
+    ASSERT_TRUE(detector->detect(view_of(r.depth_m, K, T), &out).ok());
+    ASSERT_EQ(out.size(), 1) << distance_m;
+    const SeamErrors e = seam_errors(out[0], j);
+    EXPECT_LT(e.lateral_m, 0.01) << distance_m;
+  }
+}
+
 TEST(GeometricSeamDetector, GivenASeamRunningOutOfTheImageThenThatEndIsNotObserved) {
   const hal::PinholeIntrinsics K = testing::vga_intrinsics();
   const BenchScene s = bench_with_fillet(1.8);
@@ -197,11 +221,17 @@ TEST(GeometricSeamDetector, GivenClutterWithoutAJointThenNothingIsDetected) {
     crate.T_world_box.linear() = Eigen::AngleAxisd(10 * kDeg, Eigen::Vector3d::UnitZ()).toRotationMatrix();
     crate.half_size_m = Eigen::Vector3d(0.3, 0.3, 0.2);
     scene.boxes.push_back(crate);
-    const Eigen::Isometry3d T =
-        testing::look_at(Eigen::Vector3d(0.0, -1.6, 1.4), Eigen::Vector3d(0.0, 0.0, 0.2));
-    const testing::RenderedDepth r = testing::render_depth(scene, K, T);
-    ASSERT_TRUE(detector->detect(view_of(r.depth_m, K, T), &out).ok());
-    EXPECT_EQ(out.size(), 0);
+    for (const double distance_m : {1.6, 3.3}) {
+      // From 3.3 m (rays ~20 deg below horizontal, noise 17 mm) the top face recedes ~9 cm behind the
+      // front face's edge: farther than 5 cm, but not twice its own run.
+      const Eigen::Isometry3d T =
+          testing::look_at(Eigen::Vector3d(0.0, -distance_m, 1.4), Eigen::Vector3d(0.0, 0.0, 0.2));
+      testing::RenderOptions o;
+      o.add_noise = distance_m > 2.0;
+      const testing::RenderedDepth r = testing::render_depth(scene, K, T, o);
+      ASSERT_TRUE(detector->detect(view_of(r.depth_m, K, T), &out).ok());
+      EXPECT_EQ(out.size(), 0) << distance_m;
+    }
   }
   {
     // A wall standing on the floor, its top above the image.

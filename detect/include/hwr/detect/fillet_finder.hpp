@@ -30,9 +30,11 @@ struct FilletConfig {
   double max_base_tilt_rad = 0.35;          // base normal within 20 deg of world up
   int adjacency_cells = 2;
   int min_adjacent_cells = 3;
-  double band_near_m = 0.01;  // the corner's mixed centimetre is skipped
-  double band_far_m = 0.06;
+  double band_near_m = 0.01;        // the corner's mixed centimetre is skipped...
+  double band_near_sigmas = 2.5;    // ... or this many sigma(z), if more: far away the noise mixes the plates
+  double band_far_m = 0.06;         // the band is band_far_m - band_near_m wide
   double band_inlier_sigmas = 3.0;  // a band point lies within this many sigma(z) (+ 2 mm) of its plate
+  double band_max_turn_rad = 0.05;  // a band's plane turned further from its plate's: offset refit only
   int min_band_points = 30;         // per plate
   double min_length_m = 0.15, max_length_m = 2.0;
   double min_web_height_m = 0.05, max_web_height_m = 0.5;
