@@ -4,14 +4,17 @@
 // it within max_perpendicular_dev_rad) that meet (cells of one within adjacency_cells of the other's:
 // the cells across the corner are not planar) in a concave corner (each plane's centroid on the
 // camera side of the other) are a candidate. The seam is the planes' intersection line, refitted from
-// the points of each plate in a band next to it (band_near_m to band_far_m from the other plate's
-// plane): the base plate and the bench under it merge into one plane (a 1 cm plate is within the
-// depth noise), and the band keeps the seam on the plate's own surface. The seam's ends are the
-// end_quantile / 1 - end_quantile points of the web's band along the line, clipped to the base's.
-// Gates (precision): length, web height, and a free top edge — above the web's top edge the depth
-// must be farther than the web by free_min_jump_m, or absent: a thin plate stands free, while a box on
-// the floor (its top face recedes just behind the front face's edge) or a wall does not. Camera frame
-// throughout; sized at create(), find() allocates nothing.
+// the points of each plate in a band next to it (from band_near_m, or band_near_sigmas sigma(z) when
+// more, over band_far_m - band_near_m from the other plate's plane): the base plate and the bench
+// under it merge into one plane (a 1 cm plate is within the depth noise), and the band keeps the seam
+// on the plate's own surface; a band whose plane turns beyond band_max_turn_rad from its plate's
+// (narrow and noisy, far away) keeps the plate's normal and refits its offset only. The seam's ends
+// are the end_quantile / 1 - end_quantile points of the web's band along the line, clipped to the
+// base's, less the quantile's inset. Gates (precision): length, web height, and a free top edge —
+// above the web's top edge the depth must be farther than the web by free_min_jump_m and by twice the
+// run along the ray after which a surface at the edge's height would be met, or absent: a thin plate
+// stands free, while a box on the floor (its top face recedes just behind the front face's edge) or a
+// wall does not. Camera frame throughout; sized at create(), find() allocates nothing.
 
 #include <vector>
 
