@@ -1,0 +1,65 @@
+// Fusion of seam detections over keyframes (detect/seam_fusion.hpp): constructed detections of known
+// seams, some with an end cut by the image border.
+
+#include <gtest/gtest.h>
+
+#include "hwr/detect/seam_fusion.hpp"
+
+namespace hwr::detect {
+namespace {
+
+Detection seen(const Eigen::Vector3d& a, const Eigen::Vector3d& b, bool a_seen = true, bool b_seen = true) {
+  Detection d;
+  d.seam_world = {a, b};
+  d.end_observed = {a_seen, b_seen};
+  return d;
+}
+
+TEST(SeamFusion, GivenViewsOfOneSeamThenItsLineAndItsSeenEndsAreFusedAndCutEndsOnlyWidenIt) {
+  SeamFusion f;
+  // The seam from (0, 0, 0.86) to (0.6, 0, 0.86): three views with millimetre errors, one reversed, one
+  // cut at the +x end by the border (its end at 0.45 m says nothing of the true end).
+  EXPECT_TRUE(f.add(seen({0.002, 0.001, 0.86}, {0.599, 0.001, 0.86})));
+  EXPECT_TRUE(f.add(seen({0.601, -0.001, 0.861}, {-0.001, -0.001, 0.861})));
+  EXPECT_TRUE(f.add(seen({0.000, 0.000, 0.859}, {0.45, 0.000, 0.859}, true, false)));
+  // Another seam 1 m away, seen once: a track, not reported (min_detections 2).
+  EXPECT_TRUE(f.add(seen({0, 1, 0.86}, {0.6, 1, 0.86})));
+  EXPECT_EQ(f.tracks(), 2);
+  const std::vector<FusedSeam> fused = f.fused();
+  ASSERT_EQ(fused.size(), 1u);
+  EXPECT_EQ(fused[0].detections, 3);
+  EXPECT_TRUE(fused[0].seam.end_known[0] && fused[0].seam.end_known[1]);
+  const Eigen::Vector3d lo = fused[0].seam.a.x() < fused[0].seam.b.x() ? fused[0].seam.a : fused[0].seam.b;
+  const Eigen::Vector3d hi = fused[0].seam.a.x() < fused[0].seam.b.x() ? fused[0].seam.b : fused[0].seam.a;
+  // Medians of the seen ends: 0.000 (of 0.002, -0.001, 0.000) and 0.600 (of 0.599, 0.601).
+  EXPECT_NEAR(lo.x(), 0.0, 1e-3);
+  EXPECT_NEAR(hi.x(), 0.600, 1e-3);
+  EXPECT_NEAR(lo.y(), 0.0, 1e-3);
+  EXPECT_NEAR(hi.z(), 0.86, 1e-3);
+}
+
+TEST(SeamFusion, GivenASeamWhoseEndNoViewSawThenThatEndIsTheExtentAndUnknown) {
+  SeamFusion f;
+  EXPECT_TRUE(f.add(seen({0, 0, 0}, {0.5, 0, 0}, true, false)));
+  EXPECT_TRUE(f.add(seen({0, 0, 0}, {0.7, 0, 0}, true, false)));
+  const std::vector<FusedSeam> fused = f.fused();
+  ASSERT_EQ(fused.size(), 1u);
+  EXPECT_TRUE(fused[0].seam.end_known[0]);
+  EXPECT_FALSE(fused[0].seam.end_known[1]);
+  EXPECT_NEAR(fused[0].seam.b.x(), 0.7, 1e-9);  // the farthest any view reached
+  // A detection of another kind, or one 3 cm aside, starts its own track.
+  Detection butt = seen({0, 0, 0}, {0.5, 0, 0});
+  butt.kind = SeamKind::kButt;
+  EXPECT_TRUE(f.add(butt));
+  EXPECT_TRUE(f.add(seen({0, 0.03, 0}, {0.5, 0.03, 0})));
+  EXPECT_EQ(f.tracks(), 3);
+  SeamFusionConfig one;
+  one.max_tracks = 1;
+  SeamFusion g(one);
+  EXPECT_TRUE(g.add(seen({0, 0, 0}, {0.5, 0, 0})));
+  EXPECT_FALSE(g.add(seen({0, 1, 0}, {0.5, 1, 0})));  // no track matched, the table is full
+  EXPECT_FALSE(g.add(seen({0, 0, 0}, {0, 0, 0})));    // no length
+}
+
+}  // namespace
+}  // namespace hwr::detect
