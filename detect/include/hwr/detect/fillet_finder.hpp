@@ -68,6 +68,25 @@ class FilletFinder {
   const FilletConfig& config() const { return config_; }
 
  private:
+  // One candidate's seam as the steps of find() refine it (camera frame).
+  struct Seam {
+    PlaneFit base, web;  // refitted from their bands
+    Eigen::Vector3d p0 = Eigen::Vector3d::Zero(), dir = Eigen::Vector3d::UnitX();  // the line
+    int web_band_points = 0;
+    double t0 = 0, t1 = 0;             // the ends along dir from p0
+    double height_m = 0, width_m = 0;  // the web's height, the base's width
+  };
+  // A point's band tests at depth z: inlier tolerance, the band's start and end from the other plate.
+  struct BandLimits {
+    double tol_m = 0, near_m = 0, far_m = 0;
+  };
+  BandLimits band_limits(double z_m) const;
+  bool fit_seam_line(const OrganizedCloud& cloud, const PlaneFit& base0, const PlaneFit& web0, Seam* seam);
+  bool fit_seam_extent(const OrganizedCloud& cloud, Seam* seam);
+  bool fit_plate_sizes(const OrganizedCloud& cloud, Seam* seam);
+  bool top_edge_free(const OrganizedCloud& cloud, const Seam& seam) const;
+  Detection to_detection(const hal::PinholeIntrinsics& K, const Seam& seam) const;
+
   FilletConfig config_;
   DepthNoiseModel noise_;
   std::vector<float> along_web_, along_base_, heights_, widths_;  // scratch, max_points each
