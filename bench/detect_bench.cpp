@@ -300,8 +300,9 @@ int run_detect(int argc, char** argv) {
 
 HWR_BENCH_COMMAND(
     detect, "detect",
-    "welding seams (issue #7): the geometric detector per keyframe against the sim's seams, "
-    "precision, recall, endpoint error, time [--sequences lab,outdoor] [--step N] [--duration S]",
+    "welding seams (issue #7): the geometric detector against the sim's seams, per keyframe and fused, "
+    "precision, recall, endpoint error, time [--sequences lab,outdoor] [--step N] [--duration S] "
+    "[--max-range M]",
     run_detect);
 
 }  // namespace hwr::bench
