@@ -3,6 +3,8 @@
 #include <cmath>
 #include <string>
 
+#include "hwr/detect/seam_metrics.hpp"
+
 namespace hwr::detect {
 
 namespace {
@@ -17,8 +19,7 @@ bool same_seam(const Detection& a, const Detection& b, double max_angle_rad, dou
   const Eigen::Vector3d ua = da / la;
   if (std::acos(std::min(1.0, std::fabs(ua.dot(db / lb)))) > max_angle_rad) return false;
   const Eigen::Vector3d mid_b = 0.5 * (b.seam_cam[0] + b.seam_cam[1]);
-  const Eigen::Vector3d off = mid_b - a.seam_cam[0];
-  if ((off - off.dot(ua) * ua).norm() > max_distance_m) return false;
+  if (distance_to_line_m(mid_b, a.seam_cam[0], ua) > max_distance_m) return false;
   const double t0 = ua.dot(b.seam_cam[0] - a.seam_cam[0]), t1 = ua.dot(b.seam_cam[1] - a.seam_cam[0]);
   return std::max(t0, t1) > 0 && std::min(t0, t1) < la;
 }

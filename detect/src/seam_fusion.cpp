@@ -31,11 +31,9 @@ bool SeamFusion::add(const Detection& d) {
     Eigen::Vector3d axis = t.dir_sum.normalized();
     const Eigen::Vector3d centre = t.mid_sum / t.n;
     if (std::acos(std::min(1.0, std::fabs(axis.dot(u)))) > m.max_angle_rad) continue;
-    auto lateral = [&](const Eigen::Vector3d& p) {
-      const Eigen::Vector3d off = p - centre;
-      return (off - off.dot(axis) * axis).norm();
-    };
-    if (lateral(a) > m.max_lateral_m || lateral(b) > m.max_lateral_m) continue;
+    if (distance_to_line_m(a, centre, axis) > m.max_lateral_m ||
+        distance_to_line_m(b, centre, axis) > m.max_lateral_m)
+      continue;
     // Along the track's first axis (fixed, so that its extent and ends stay comparable).
     double ta = t.axis.dot(a - t.origin), tb = t.axis.dot(b - t.origin);
     bool a_observed = d.end_observed[0], b_observed = d.end_observed[1];

@@ -5,14 +5,10 @@
 
 namespace hwr::detect {
 
-namespace {
-
-double distance_to_line(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& u) {
+double distance_to_line_m(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& u) {
   const Eigen::Vector3d off = p - a;
   return (off - off.dot(u) * u).norm();
 }
-
-}  // namespace
 
 SeamSegment seam_of(const Detection& d) {
   SeamSegment s;
@@ -47,7 +43,7 @@ SeamScore score_seams(const std::vector<SeamSegment>& detected, const std::vecto
       SeamMatch m;
       m.detected = static_cast<int>(i);
       m.truth = static_cast<int>(j);
-      m.lateral_m = std::max(distance_to_line(d.a, t.a, ut), distance_to_line(d.b, t.a, ut));
+      m.lateral_m = std::max(distance_to_line_m(d.a, t.a, ut), distance_to_line_m(d.b, t.a, ut));
       if (m.lateral_m > config.max_lateral_m) continue;
       const double s0 = ut.dot(d.a - t.a), s1 = ut.dot(d.b - t.a);
       const double overlap = std::min(std::max(s0, s1), lt) - std::max(std::min(s0, s1), 0.0);

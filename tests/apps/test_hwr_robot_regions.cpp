@@ -32,6 +32,12 @@ hwr::testing::CliRun run_lab_40s(const std::string& dir, const std::string& regi
                                            " --map-out " + dir + "/map --gt-out " + dir + "/gt.txt");
 }
 
+// hwr-eval ae on run_lab_40s's store against its truth (extra: more options, e.g. --segmented).
+hwr::testing::CliRun run_region_ae(const std::string& dir, const std::string& extra) {
+  return hwr::testing::run_cli(kEval, "ae --groundtruth " + dir + "/sim/weld_groundtruth.yaml --map " + dir +
+                                          "/map --truth-traj " + dir + "/gt.txt" + extra);
+}
+
 TEST(
     HwrRobotRegions,
     GivenTheSimulatorsJointsAsDetectionsThenTheStoreKeepsTheirFineCloudsAndTheirPlatesAreMillimetreAccurate) {
@@ -45,9 +51,7 @@ TEST(
   EXPECT_NE(robot.out.find("map: welding regions="), std::string::npos) << robot.out;
   EXPECT_TRUE(fs::exists(tmp_path + "/map/segments/seg_000000/fine.bin"));
 
-  const auto ae =
-      hwr::testing::run_cli(kEval, "ae --groundtruth " + tmp_path + "/sim/weld_groundtruth.yaml --map " +
-                                       tmp_path + "/map --truth-traj " + tmp_path + "/gt.txt");
+  const auto ae = run_region_ae(tmp_path, "");
   ASSERT_EQ(ae.exit_code, 0) << ae.out;
   std::printf("%s", ae.out.c_str());
   const auto kv = hwr::testing::key_values(ae.out);
@@ -59,9 +63,7 @@ TEST(
   EXPECT_LT(std::atof(kv.at("ae_mm").c_str()), 3.0);
   EXPECT_GT(std::atoll(kv.at("fine_points").c_str()), 100000);
   // With segmentation (segments chained by their junctions) the same plates, as accurate.
-  const auto seg =
-      hwr::testing::run_cli(kEval, "ae --groundtruth " + tmp_path + "/sim/weld_groundtruth.yaml --map " +
-                                       tmp_path + "/map --truth-traj " + tmp_path + "/gt.txt --segmented");
+  const auto seg = run_region_ae(tmp_path, " --segmented");
   ASSERT_EQ(seg.exit_code, 0) << seg.out;
   EXPECT_LT(std::atof(hwr::testing::key_values(seg.out).at("ae_mm").c_str()), 3.0);
 }
@@ -78,9 +80,7 @@ TEST(HwrRobotRegions, GivenTheGeometricSeamDetectorThenTheFilletPassedCloseByIsA
   EXPECT_NE(robot.out.find("the geometric seam detector on each keyframe's depth"), std::string::npos)
       << robot.out;
   EXPECT_NE(robot.out.find("map: welding regions="), std::string::npos) << robot.out;
-  const auto ae =
-      hwr::testing::run_cli(kEval, "ae --groundtruth " + tmp_path + "/sim/weld_groundtruth.yaml --map " +
-                                       tmp_path + "/map --truth-traj " + tmp_path + "/gt.txt");
+  const auto ae = run_region_ae(tmp_path, "");
   ASSERT_EQ(ae.exit_code, 0) << ae.out;
   std::printf("%s", ae.out.c_str());
   const auto kv = hwr::testing::key_values(ae.out);

@@ -12,6 +12,7 @@
 #include "depth_render.hpp"
 #include "hwr/core/alloc_counter.hpp"
 #include "hwr/detect/geometric_seam_detector.hpp"
+#include "hwr/detect/seam_metrics.hpp"
 
 namespace hwr::detect {
 namespace {
@@ -65,9 +66,7 @@ KeyframeView view_of(const cv::Mat& depth, const hal::PinholeIntrinsics& K,
 }
 
 double distance_to_line(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
-  const Eigen::Vector3d u = (b - a).normalized();
-  const Eigen::Vector3d off = p - a;
-  return (off - off.dot(u) * u).norm();
+  return distance_to_line_m(p, a, (b - a).normalized());
 }
 
 // Errors of a detected seam against the truth: lateral (the detected ends' distance to the true

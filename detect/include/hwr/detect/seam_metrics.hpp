@@ -30,6 +30,9 @@ struct SeamSegment {
 
 SeamSegment seam_of(const Detection& d);  // seam_world, kind, end_observed
 
+// Distance of p from the line through a along the unit direction u (metres).
+double distance_to_line_m(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& u);
+
 struct SeamMatchConfig {
   double max_angle_rad = 0.175;  // 10 deg
   double max_lateral_m = 0.02;
