@@ -7,8 +7,13 @@
 #include <limits>
 #include <string>
 
+#include "lcm_reader.hpp"
+
 namespace hwr::mapio {
 namespace {
+
+using detail::BeReader;
+using detail::encode_lcm;
 
 // Little-endian writer into a fixed buffer (the canonical CRC form, chunk_wire.hpp).
 class LeWriter {
@@ -69,98 +74,9 @@ core::Status check_robot_id(const std::string& robot_id, const ChunkWireLimits& 
   return core::Status::Ok();
 }
 
-// Big-endian reads over the received bytes (LCM's encoding); every read is bounds-checked.
-class BeReader {
- public:
-  BeReader(const uint8_t* data, size_t size, const char* type) : data_(data), size_(size), type_(type) {}
-  size_t pos() const { return pos_; }
-  size_t left() const { return size_ - pos_; }
-  core::Status need(size_t n, const char* field) const {
-    if (left() < n) {
-      return core::ParseError(std::string(type_) + ": message truncated at " + field + " (offset " +
-                              std::to_string(pos_) + ", needs " + std::to_string(n) + " bytes, " +
-                              std::to_string(left()) + " left of " + std::to_string(size_) + ")");
-    }
-    return core::Status::Ok();
-  }
-  core::Status skip(size_t n, const char* field) {
-    HWR_RETURN_IF_ERROR(need(n, field));
-    pos_ += n;
-    return core::Status::Ok();
-  }
-  core::Status i32(int32_t* v, const char* field) {
-    HWR_RETURN_IF_ERROR(need(4, field));
-    uint32_t u = 0;
-    for (int i = 0; i < 4; ++i) u = (u << 8) | data_[pos_ + i];
-    pos_ += 4;
-    *v = static_cast<int32_t>(u);
-    return core::Status::Ok();
-  }
-  core::Status i64(int64_t* v, const char* field) {
-    HWR_RETURN_IF_ERROR(need(8, field));
-    uint64_t u = 0;
-    for (int i = 0; i < 8; ++i) u = (u << 8) | data_[pos_ + i];
-    pos_ += 8;
-    *v = static_cast<int64_t>(u);
-    return core::Status::Ok();
-  }
-  // An LCM string: int32 length including the terminating NUL, then the bytes.
-  core::Status string(size_t max_bytes, const char* field) {
-    const size_t at = pos_;
-    int32_t length = 0;
-    HWR_RETURN_IF_ERROR(i32(&length, field));
-    if (length < 1) {
-      return core::ParseError(std::string(type_) + ": " + field + " length " + std::to_string(length) +
-                              " at offset " + std::to_string(at) + " (an LCM string is at least its NUL)");
-    }
-    if (static_cast<size_t>(length) - 1 > max_bytes) {
-      return core::OutOfRange(std::string(type_) + ": " + field + " claims " + std::to_string(length - 1) +
-                              " bytes, more than the limit of " + std::to_string(max_bytes));
-    }
-    HWR_RETURN_IF_ERROR(need(static_cast<size_t>(length), field));
-    const uint8_t* s = data_ + pos_;
-    if (s[length - 1] != 0) {
-      return core::ParseError(std::string(type_) + ": " + field + " at offset " + std::to_string(at) +
-                              " is not NUL-terminated");
-    }
-    if (std::memchr(s, 0, static_cast<size_t>(length) - 1) != nullptr) {
-      return core::ParseError(std::string(type_) + ": " + field + " contains a NUL byte");
-    }
-    pos_ += static_cast<size_t>(length);
-    return core::Status::Ok();
-  }
-  core::Status check_fingerprint(int64_t expected) {
-    int64_t hash = 0;
-    HWR_RETURN_IF_ERROR(i64(&hash, "fingerprint"));
-    if (hash != expected) {
-      return core::ParseError(std::string("not a ") + type_ + " message (type fingerprint " +
-                              std::to_string(static_cast<uint64_t>(hash)) + ", expected " +
-                              std::to_string(static_cast<uint64_t>(expected)) + ")");
-    }
-    return core::Status::Ok();
-  }
-  core::Status check_end() const {
-    if (left() != 0) {
-      return core::ParseError(std::string(type_) + ": " + std::to_string(left()) +
-                              " unexpected bytes after the end of the message (offset " +
-                              std::to_string(pos_) + ")");
-    }
-    return core::Status::Ok();
-  }
-
- private:
-  const uint8_t* data_;
-  size_t size_;
-  size_t pos_ = 0;
-  const char* type_;
-};
-
-core::Status check_message_size(size_t size, const ChunkWireLimits& limits, const char* type) {
-  if (size > limits.max_message_bytes || size > static_cast<size_t>(std::numeric_limits<int>::max())) {
-    return core::OutOfRange(std::string(type) + ": message of " + std::to_string(size) +
-                            " bytes exceeds the limit of " + std::to_string(limits.max_message_bytes));
-  }
-  return core::Status::Ok();
+core::Status check_message_size(const uint8_t* data, size_t size, const ChunkWireLimits& limits,
+                                const char* type) {
+  return detail::check_message_size(data, size, limits.max_message_bytes, type);
 }
 
 bool is_flag(int8_t v) { return v == 0 || v == 1; }
@@ -348,8 +264,7 @@ core::Status verify_ack(const hwr_lcm::chunk_ack_t& a, const ChunkWireLimits& li
 core::Status decode_chunk_message(const uint8_t* data, size_t size, hwr_lcm::map_chunk_t* out,
                                   const ChunkWireLimits& limits) {
   constexpr const char* kType = "map_chunk_t";
-  HWR_RETURN_IF_ERROR(check_message_size(size, limits, kType));
-  if (data == nullptr && size > 0) return core::InvalidArgument("map_chunk_t: null buffer");
+  HWR_RETURN_IF_ERROR(check_message_size(data, size, limits, kType));
   // Walk the encoding (map_chunk_t.lcm order) and bound every length before LCM sees it.
   BeReader r(data, size, kType);
   HWR_RETURN_IF_ERROR(r.check_fingerprint(hwr_lcm::map_chunk_t::getHash()));
@@ -372,19 +287,13 @@ core::Status decode_chunk_message(const uint8_t* data, size_t size, hwr_lcm::map
 
   // LCM leaves a vector untouched when its length field is 0: clear what a reused `out` held.
   out->payload.clear();
-  const int n = out->decode(data, 0, static_cast<int>(size));
-  if (n != static_cast<int>(size)) {
-    return core::ParseError("map_chunk_t: LCM decode failed (returned " + std::to_string(n) + " of " +
-                            std::to_string(size) + " bytes)");
-  }
-  return core::Status::Ok();
+  return detail::decode_walked(data, size, kType, out);
 }
 
 core::Status decode_ack_message(const uint8_t* data, size_t size, hwr_lcm::chunk_ack_t* out,
                                 const ChunkWireLimits& limits) {
   constexpr const char* kType = "chunk_ack_t";
-  HWR_RETURN_IF_ERROR(check_message_size(size, limits, kType));
-  if (data == nullptr && size > 0) return core::InvalidArgument("chunk_ack_t: null buffer");
+  HWR_RETURN_IF_ERROR(check_message_size(data, size, limits, kType));
   BeReader r(data, size, kType);
   HWR_RETURN_IF_ERROR(r.check_fingerprint(hwr_lcm::chunk_ack_t::getHash()));
   HWR_RETURN_IF_ERROR(r.skip(8, "t_ns"));
@@ -403,33 +312,8 @@ core::Status decode_ack_message(const uint8_t* data, size_t size, hwr_lcm::chunk
   HWR_RETURN_IF_ERROR(r.check_end());
 
   out->selective.clear();
-  const int n = out->decode(data, 0, static_cast<int>(size));
-  if (n != static_cast<int>(size)) {
-    return core::ParseError("chunk_ack_t: LCM decode failed (returned " + std::to_string(n) + " of " +
-                            std::to_string(size) + " bytes)");
-  }
-  return core::Status::Ok();
+  return detail::decode_walked(data, size, kType, out);
 }
-
-namespace {
-
-template <class Msg>
-core::Status encode_lcm(const Msg& msg, const char* type, std::vector<uint8_t>* out) {
-  const int64_t size = msg.getEncodedSize();
-  if (size <= 0 || size > std::numeric_limits<int>::max()) {
-    return core::InvalidArgument(std::string(type) + ": cannot encode a message of " + std::to_string(size) +
-                                 " bytes");
-  }
-  out->resize(static_cast<size_t>(size));
-  const int n = msg.encode(out->data(), 0, static_cast<int>(size));
-  if (n != size) {
-    return core::Internal(std::string(type) + ": LCM encode wrote " + std::to_string(n) + " of " +
-                          std::to_string(size) + " bytes");
-  }
-  return core::Status::Ok();
-}
-
-}  // namespace
 
 core::Status encode_chunk_message(const hwr_lcm::map_chunk_t& chunk, std::vector<uint8_t>* out) {
   // LCM encodes robot_id up to its first NUL but sizes it by size(): they must agree.
