@@ -45,6 +45,7 @@
 #include "hwr/recon/relocalization_worker.hpp"
 #include "hwr/recon/segment_writer.hpp"
 #include "hwr/recon/truth_weld_regions.hpp"
+#include "operator_channel.hpp"
 #include "hwr/detect/geometric_seam_detector.hpp"
 #if HWR_WITH_SIM
 #include "hwr/sim/run_writer.hpp"
@@ -172,6 +173,8 @@ struct Robot {
   // --regions geometry: the detector and its output list (sized at start-up).
   hwr::detect::Detector* detector = nullptr;
   hwr::detect::DetectionList* detected = nullptr;
+  // The operator channel (with a detector): the detection list, operator commands (operator_channel.hpp).
+  hwr::robot::OperatorChannel* operator_channel = nullptr;
   uint64_t detect_errors = 0;
   uint64_t region_detections = 0;
   uint64_t updated_segments = 0, updated_points_deleted = 0, updated_stream_refused = 0;
@@ -365,17 +368,27 @@ void detect_geometry_regions(Robot* r) {
       continue;
     }
     for (int i = 0; i < r->detected->size(); ++i) {
-      r->mapper->add_weld_region(to_weld_region((*r->detected)[i]), kf->T_world_cam);
+      const hwr::detect::Detection& d = (*r->detected)[i];
+      if (r->operator_channel != nullptr &&
+          r->operator_channel->suppress(kf->T_world_cam * d.T_cam_box, d.half_size_m))
+        continue;  // on a region the operator rejected
+      r->mapper->add_weld_region(to_weld_region(d), kf->T_world_cam);
       ++r->region_detections;
     }
   }
   r->detected_upto = std::max(r->detected_upto, kfs.newest_id());
 }
 
-void mapping_task(void* ctx, int64_t) {
+void mapping_task(void* ctx, int64_t now_ns) {
   auto* r = static_cast<Robot*>(ctx);
   if (r->truth_joints != nullptr) detect_truth_regions(r);
   if (r->detector != nullptr) detect_geometry_regions(r);
+  if (r->operator_channel != nullptr) {
+    // Before relocalizing against a prior map, this run does not know the frame of the prior's list.
+    const bool map_frame_known = r->reloc == nullptr || r->in_prior_frame;
+    r->operator_channel->step(&r->mapper->fine_map_for_operator(), r->estimator->tracker().keyframes(),
+                              r->T_out_world, map_frame_known, now_ns);
+  }
   if (r->estimator->local_ba_due()) {
     auto report = r->estimator->run_local_ba();
     if (!report.ok()) HWR_LOG_WARN("robot", "local bundle adjustment: %s", report.status().message().c_str());
@@ -938,6 +951,31 @@ int run(const Args& args) {
     std::fprintf(stderr,
                  "hwr-robot: welding regions: the geometric seam detector on each keyframe's depth\n");
   }
+  // The operator channel: the detectors' regions as a list the operator corrects (operator_channel.hpp),
+  // kept in the map store and, on the next visit, read back from the prior map.
+  std::unique_ptr<hwr::robot::OperatorChannel> operator_channel;
+  if (robot.detector != nullptr) {
+    hwr::detect::DetectionLedger ledger;
+    if (!args.prior_map.empty()) {
+      const std::string path = args.prior_map + "/detections.yaml";
+      auto loaded = hwr::detect::DetectionLedger::load(path);
+      if (loaded.ok()) {
+        ledger = std::move(loaded.value());
+        std::fprintf(
+            stderr,
+            "hwr-robot: welding regions: %zu from the prior map's list (%s), placed once relocalized\n",
+            ledger.entries().size(), path.c_str());
+      } else if (loaded.status().code() != hwr::core::ErrorCode::kNotFound) {
+        // The operator's decisions are not dropped silently: the file must be mended or removed.
+        std::fprintf(stderr, "hwr-robot: --prior-map: %s\n", loaded.status().message().c_str());
+        return 1;
+      }
+    }
+    const std::string save_path = args.map_out.empty() ? "" : args.map_out + "/detections.yaml";
+    operator_channel = std::make_unique<hwr::robot::OperatorChannel>(std::move(ledger), info.intrinsics,
+                                                                     streamer.get(), save_path);
+    robot.operator_channel = operator_channel.get();
+  }
   robot.segments = &segments;
   robot.streamer = streamer.get();
   robot.quiet = args.quiet;
@@ -1003,6 +1041,16 @@ int run(const Args& args) {
     take_updated_segments(&robot);
   }
   if (store_writer) store_writer->drain();
+  if (operator_channel) {
+    // Commands that came in at the end, then the list as the run leaves it.
+    operator_channel->step(&mapper->fine_map_for_operator(), estimator->tracker().keyframes(),
+                           robot.T_out_world, !reloc || robot.in_prior_frame, end);
+    const hwr::core::Status os = operator_channel->save();
+    if (!os.ok()) {
+      std::fprintf(stderr, "hwr-robot: the detection list: %s\n", os.message().c_str());
+      rc = 1;
+    }
+  }
 
   char table[4096];
   sched.format_telemetry(table, sizeof(table));
@@ -1077,6 +1125,21 @@ int run(const Args& args) {
     if (robot.detect_errors > 0) {
       std::printf("map: seam detector: %" PRIu64 " keyframes refused (the first is in the log)\n",
                   robot.detect_errors);
+    }
+    if (operator_channel) {
+      const auto& o = operator_channel->counters();
+      size_t rejected = 0, confirmed = 0;
+      for (const auto& entry : operator_channel->ledger().entries()) {
+        rejected += entry.state == hwr::detect::DetectionState::kRejected;
+        confirmed += entry.state == hwr::detect::DetectionState::kConfirmed;
+      }
+      std::printf("operator: detections=%zu confirmed=%zu rejected=%zu commands applied=%" PRIu64
+                  " refused=%" PRIu64 " repeated=%" PRIu64 " suppressed_detections=%" PRIu64
+                  " restored_from_prior=%" PRIu64 " -> %s\n",
+                  operator_channel->ledger().entries().size(), confirmed, rejected, o.commands_applied,
+                  o.commands_refused, o.commands_repeated, o.detections_suppressed, o.regions_restored,
+                  operator_channel->save_path().empty() ? "(no --map-out: not kept)"
+                                                        : operator_channel->save_path().c_str());
     }
     if (store_writer) {
       const auto w = store_writer->counters();

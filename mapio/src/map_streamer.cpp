@@ -17,6 +17,7 @@
 #include "hwr/mapio/chunk_wire.hpp"
 #include "hwr/mapio/ground_store.hpp"
 #include "hwr/mapio/lcm_link.hpp"
+#include "hwr/mapio/operator_wire.hpp"
 #include "hwr_lcm/pose_t.hpp"
 
 namespace hwr::mapio {
@@ -91,6 +92,12 @@ struct MapStreamer::Impl {
   bool status_due = false;           // under mu
   hwr_lcm::status_t status_out;      // streamer thread
   hwr_lcm::pose_t pose_out;          // streamer thread
+  // The operator channel, under mu (operator-paced: a few messages, so plain queues).
+  static constexpr size_t kMaxDetectionsWaiting = 256, kMaxCommandsWaiting = 64;
+  std::deque<hwr_lcm::detection_t> detections_out;
+  std::deque<hwr_lcm::command_ack_t> acks_out;
+  std::deque<hwr_lcm::operator_command_t> commands_in;
+  hwr_lcm::operator_command_t command_scratch;  // streamer thread
   std::thread thread;
   std::atomic<bool> stop{false};
   std::atomic<int64_t> submitted{0};    // batches and owed completions handed over (the next seq)
@@ -221,6 +228,7 @@ struct MapStreamer::Impl {
       std::lock_guard<std::mutex> lock(mu);
       stats.last_ack_ns = steady_ns();
     });
+    link.subscribe(kChannelOperatorCommand, [this](const uint8_t* d, size_t n) { on_command(d, n); });
     for (;;) {
       // Take the next batch only when the previous one's chunks are all in the window.
       if (pending.empty()) take_next_item();
@@ -255,7 +263,50 @@ struct MapStreamer::Impl {
     }
   }
 
+  void on_command(const uint8_t* data, size_t size) {
+    const core::Status st = decode_operator_command(data, size, &command_scratch);
+    std::lock_guard<std::mutex> lock(mu);
+    if (!st.ok()) {
+      ++stats.commands_refused;
+      stats.last_command_error = st.message();
+      return;
+    }
+    if (command_scratch.robot_id != robot_id_) {
+      ++stats.commands_other_robot;
+      return;
+    }
+    if (commands_in.size() >= kMaxCommandsWaiting) {
+      ++stats.commands_dropped;
+      return;
+    }
+    commands_in.push_back(command_scratch);
+    ++stats.commands_received;
+  }
+
+  // Sends the detections and acknowledgements waiting (taken under mu, published outside it).
+  void publish_operator_messages() {
+    std::deque<hwr_lcm::detection_t> detections;
+    std::deque<hwr_lcm::command_ack_t> acks;
+    {
+      std::lock_guard<std::mutex> lock(mu);
+      if (detections_out.empty() && acks_out.empty()) return;
+      detections.swap(detections_out);
+      acks.swap(acks_out);
+    }
+    int64_t published_detections = 0, published_acks = 0;
+    for (const auto& d : detections)
+      if (link.publish(kChannelDetection, d).ok()) ++published_detections;
+    for (const auto& a : acks)
+      if (link.publish(kChannelOperatorAck, a).ok()) ++published_acks;
+    std::lock_guard<std::mutex> lock(mu);
+    stats.detections_published += published_detections;
+    stats.acks_published += published_acks;
+    stats.link_errors +=
+        static_cast<int64_t>(detections.size() + acks.size()) - published_detections - published_acks;
+  }
+
   void publish_telemetry() {
+    publish_operator_messages();
     PoseSample p;
     int64_t published = 0;
     while (poses.try_pop(p)) {
@@ -446,6 +497,34 @@ void MapStreamer::post_status(const hwr_lcm::status_t& status) {
   m.status_pending.robot_id = m.robot_id_;
   m.status_pending.run_id = m.run_id_;
   m.status_due = true;
+}
+
+void MapStreamer::post_detection(const hwr_lcm::detection_t& detection) {
+  Impl& m = *impl_;
+  std::lock_guard<std::mutex> lock(m.mu);
+  if (m.detections_out.size() >= Impl::kMaxDetectionsWaiting) {
+    m.detections_out.pop_front();
+    ++m.stats.detections_dropped;
+  }
+  m.detections_out.push_back(detection);
+  m.detections_out.back().robot_id = m.robot_id_;
+  m.detections_out.back().run_id = m.run_id_;
+}
+
+void MapStreamer::post_command_ack(const hwr_lcm::command_ack_t& ack) {
+  Impl& m = *impl_;
+  std::lock_guard<std::mutex> lock(m.mu);
+  m.acks_out.push_back(ack);
+  m.acks_out.back().robot_id = m.robot_id_;
+}
+
+bool MapStreamer::take_operator_command(hwr_lcm::operator_command_t* command) {
+  Impl& m = *impl_;
+  std::lock_guard<std::mutex> lock(m.mu);
+  if (m.commands_in.empty()) return false;
+  *command = std::move(m.commands_in.front());
+  m.commands_in.pop_front();
+  return true;
 }
 
 MapStreamerStats MapStreamer::stats() const {

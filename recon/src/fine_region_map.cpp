@@ -54,6 +54,11 @@ bool box_pixels(const Eigen::Isometry3d& T_cam_box, const Eigen::Vector3d& half,
   return true;
 }
 
+// A box with positive finite half sizes and a rigid pose.
+bool valid_box(const Eigen::Isometry3d& T_world_region, const Eigen::Vector3d& h) {
+  return h.allFinite() && h.minCoeff() > 0 && core::rigid_transform_problem(T_world_region).empty();
+}
+
 // A merged detection this much nearer to its camera than the region's anchor re-anchors it.
 constexpr double kReanchorM = 0.05;
 
@@ -110,6 +115,7 @@ int64_t FineRegionMap::add(const WeldRegion& detection, const Eigen::Isometry3d&
         inside_region_box(T_world_region.inverse(Eigen::Isometry) * a.T_world_region.translation(), h);
     if (!ours && !theirs) continue;
     ++counters_.detections_merged;
+    if (a.fixed) return a.region.id;  // the operator's box stays as it was drawn
     // The box the anchor does not keep: the detection's, or the region's own when re-anchored.
     Eigen::Isometry3d T_world_other = T_world_region;
     Eigen::Vector3d h_other = h;
@@ -163,9 +169,57 @@ void FineRegionMap::cover(Active* a, const Eigen::Isometry3d& T_world_other, con
   ++counters_.boxes_grown;
 }
 
+int FineRegionMap::find(uint32_t id) const {
+  for (size_t i = 0; i < active_.size(); ++i)
+    if (active_[i].region.id == id) return static_cast<int>(i);
+  return -1;
+}
+
+int64_t FineRegionMap::add_fixed(const WeldRegion& region, const Eigen::Isometry3d& T_world_region) {
+  if (!valid_box(T_world_region, region.half_size_m)) {
+    ++counters_.detections_invalid;
+    return -1;
+  }
+  if (static_cast<int>(active_.size()) >= config_.max_regions) {
+    ++counters_.regions_refused;
+    return -1;
+  }
+  Active a;
+  a.region = region;
+  a.region.id = next_id_++;
+  a.fixed = true;
+  a.T_world_region = T_world_region;
+  a.T_region_world = T_world_region.inverse(Eigen::Isometry);
+  active_.push_back(a);  // within the reserved capacity: no allocation
+  ++counters_.regions_added;
+  ++counters_.boxes_fixed;
+  return a.region.id;
+}
+
+bool FineRegionMap::set_fixed_box(uint32_t id, const Eigen::Isometry3d& T_world_region,
+                                  const Eigen::Vector3d& half_size_m) {
+  const int i = find(id);
+  if (i < 0 || !valid_box(T_world_region, half_size_m)) return false;
+  Active& a = active_[static_cast<size_t>(i)];
+  a.fixed = true;
+  a.region.half_size_m = half_size_m;
+  a.T_world_region = T_world_region;
+  a.T_region_world = T_world_region.inverse(Eigen::Isometry);
+  ++counters_.boxes_fixed;
+  return true;
+}
+
+bool FineRegionMap::remove(uint32_t id) {
+  const int i = find(id);
+  if (i < 0) return false;
+  active_.erase(active_.begin() + i);  // shifts within the capacity: no allocation
+  ++counters_.regions_removed;
+  return true;
+}
+
 void FineRegionMap::settle(int32_t keyframe_id, const Eigen::Isometry3d& T_world_cam) {
   for (Active& a : active_) {
-    if (a.region.keyframe_id != keyframe_id) continue;
+    if (a.fixed || a.region.keyframe_id != keyframe_id) continue;
     a.T_world_region = T_world_cam * a.region.T_cam_region;
     a.T_region_world = a.T_world_region.inverse(Eigen::Isometry);
   }

@@ -279,6 +279,48 @@ TEST(FineRegionMap, GivenGrowToCoverThenAMergedDetectionExtendsTheRegionsBox) {
   EXPECT_EQ(fine->counters().boxes_grown, 2u);
 }
 
+// The operator's corrections (issue #7 item 4): a fixed box is neither re-anchored, grown nor settled;
+// a removed region takes no more points; an added fixed region does not merge into a neighbour.
+TEST(FineRegionMap, GivenTheOperatorsBoxesThenDetectionsNoLongerChangeThemAndARemovedRegionIsGone) {
+  const hal::PinholeIntrinsics K = intrinsics();
+  FineRegionConfig c = small_config();
+  c.grow_to_cover = true;
+  auto fine = FineRegionMap::create(c, K);
+  ASSERT_TRUE(fine.ok());
+  const Eigen::Isometry3d T_world_cam = pose(0.2, Eigen::Vector3d(1, 2, 1));
+  ASSERT_EQ(fine->add(region_at(Eigen::Vector3d(0, 0, 1.5), Eigen::Vector3d(0.15, 0.1, 0.1)), T_world_cam),
+            0);
+  const Eigen::Isometry3d T_world_box = T_world_cam * pose(0.0, Eigen::Vector3d(0.02, 0, 1.5));
+  ASSERT_TRUE(fine->set_fixed_box(0, T_world_box, Eigen::Vector3d(0.3, 0.1, 0.1)));
+  EXPECT_TRUE(fine->fixed(0));
+  EXPECT_FALSE(fine->set_fixed_box(7, T_world_box, Eigen::Vector3d(0.3, 0.1, 0.1)));  // no such region
+  EXPECT_FALSE(fine->set_fixed_box(0, T_world_box, Eigen::Vector3d(0.3, 0.0, 0.1)));  // no volume
+  // A nearer, overlapping detection merges without moving or growing it; settling its keyframe neither.
+  const Eigen::Isometry3d T_world_near = T_world_cam * Eigen::Translation3d(0, 0, 0.5);
+  ASSERT_EQ(fine->add(region_at(Eigen::Vector3d(0.1, 0, 1.0), Eigen::Vector3d(0.2, 0.1, 0.1)), T_world_near),
+            0);
+  fine->settle(-1, pose(1.0, Eigen::Vector3d(5, 5, 5)));
+  EXPECT_TRUE(fine->T_world_region(0).isApprox(T_world_box, 1e-12));
+  EXPECT_NEAR(fine->region(0).half_size_m.x(), 0.3, 1e-12);
+  EXPECT_EQ(fine->counters().anchors_moved, 0u);
+  EXPECT_EQ(fine->counters().boxes_grown, 0u);
+  // An operator's region drawn beside it (overlapping) is a region of its own.
+  WeldRegion drawn = region_at(Eigen::Vector3d::Zero(), Eigen::Vector3d(0.1, 0.1, 0.1));
+  const int64_t added = fine->add_fixed(drawn, T_world_box);
+  ASSERT_EQ(added, 1);
+  EXPECT_EQ(fine->active_regions(), 2);
+  drawn.half_size_m.x() = -1;
+  EXPECT_EQ(fine->add_fixed(drawn, T_world_box), -1);
+  // Removed: gone from the table and from what the keyframes feed.
+  ASSERT_TRUE(fine->remove(0));
+  EXPECT_FALSE(fine->remove(0));
+  EXPECT_EQ(fine->active_regions(), 1);
+  EXPECT_EQ(fine->find(1), 0);
+  EXPECT_EQ(fine->find(0), -1);
+  EXPECT_EQ(fine->counters().regions_removed, 1u);
+  EXPECT_EQ(fine->counters().boxes_fixed, 2u);
+}
+
 TEST(FineRegionMap, GivenACreatedMapThenAddingAndInsertingAllocateNothing) {
   const hal::PinholeIntrinsics K = intrinsics();
   auto fine = FineRegionMap::create(small_config(), K);

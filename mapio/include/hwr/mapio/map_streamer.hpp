@@ -30,6 +30,9 @@
 #include "hwr/core/status.hpp"
 #include "hwr/mapio/chunk_codec.hpp"
 #include "hwr/mapio/chunk_sender.hpp"
+#include "hwr_lcm/command_ack_t.hpp"
+#include "hwr_lcm/detection_t.hpp"
+#include "hwr_lcm/operator_command_t.hpp"
 #include "hwr_lcm/status_t.hpp"
 
 namespace hwr::mapio {
@@ -80,6 +83,12 @@ struct MapStreamerStats {
   int64_t link_errors = 0;
   int64_t last_ack_ns = 0;  // steady clock
   int64_t poses_published = 0, poses_dropped = 0, status_published = 0;
+  // The operator channel (docs/detection.md): detections and acknowledgements out, commands in.
+  int64_t detections_published = 0, detections_dropped = 0, acks_published = 0;
+  int64_t commands_received = 0;  // decoded, for this robot, handed to take_operator_command()
+  int64_t commands_refused = 0;   // undecodable or invalid (operator_wire.hpp)
+  int64_t commands_other_robot = 0, commands_dropped = 0;  // addressed to another robot; inbox full
+  std::string last_command_error;
 };
 
 class MapStreamer {
@@ -104,6 +113,16 @@ class MapStreamer {
   // (the latest one replaces one not yet sent). robot_id and run_id are filled in.
   void post_pose(int64_t t_ns, const Eigen::Isometry3d& T_world_cam, bool tracking);
   void post_status(const hwr_lcm::status_t& status);
+  // The operator channel (issue #7 item 4). post_detection: an entry of the robot's welding-region
+  // list for HWR_DETECTION (robot_id, run_id filled in); at most 256 wait, a full queue drops the
+  // oldest (counted). post_command_ack: the answer to an operator command, on HWR_OPERATOR_ACK (robot_id
+  // filled in). take_operator_command: the next HWR_OPERATOR_CMD addressed to this robot that decoded and
+  // validated (operator_wire.hpp), oldest first; false when none waits (at most 64 wait: a full inbox
+  // drops the newest, counted, and the ground station resends it). Any thread; the messages are sent
+  // and received by the streamer thread.
+  void post_detection(const hwr_lcm::detection_t& detection);
+  void post_command_ack(const hwr_lcm::command_ack_t& ack);
+  bool take_operator_command(hwr_lcm::operator_command_t* command);
   // Waits until everything submitted has been acknowledged (true) or timeout_s passed (false).
   bool flush(double timeout_s);
   MapStreamerStats stats() const;

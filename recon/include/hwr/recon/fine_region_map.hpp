@@ -60,6 +60,8 @@ struct FineRegionCounters {
   uint64_t anchors_moved = 0;       // ... seen from nearer: the region re-anchored on it
   uint64_t boxes_grown = 0;         // ... and its box grown to hold the detection (grow_to_cover)
   uint64_t regions_refused = 0;     // the table was full
+  uint64_t regions_removed = 0;     // remove(): the operator rejected them
+  uint64_t boxes_fixed = 0;         // set_fixed_box() and add_fixed(): the operator's boxes
   uint64_t detections_invalid = 0;  // non-positive or non-finite half sizes, a non-rigid pose
   uint64_t keyframes_in_view = 0;   // keyframes that saw at least one active region
   uint64_t points_inserted = 0;     // handed to the fine map (merged, new, or refused by its voxel map)
@@ -77,6 +79,24 @@ class FineRegionMap {
   // became or merged into, or -1 when refused (invalid detection, table full; counted). The region's
   // id is assigned here (detection.id is ignored).
   int64_t add(const WeldRegion& detection, const Eigen::Isometry3d& T_world_cam);
+  // The operator's corrections (issue #7 item 4; detect/detection_ledger.hpp). A fixed region keeps
+  // the box it was given in the world: detections merged into it no longer re-anchor or grow it, and
+  // settle() leaves it where it is.
+  //  - add_fixed: a new region (no merging) with box T_world_region and region.half_size_m; region's
+  //    other fields are kept, its id assigned. -1 when refused (invalid box, table full; counted).
+  //  - set_fixed_box: region `id` gets this box and becomes fixed. false when no region has that id or
+  //    the box is invalid.
+  //  - remove: region `id` leaves the active table (its fine points already merged stay in the
+  //    segment's cloud). false when no region has that id.
+  // None of them allocates.
+  int64_t add_fixed(const WeldRegion& region, const Eigen::Isometry3d& T_world_region);
+  bool set_fixed_box(uint32_t id, const Eigen::Isometry3d& T_world_region,
+                     const Eigen::Vector3d& half_size_m);
+  bool remove(uint32_t id);
+  // Index of region `id` in the active table, or -1.
+  int find(uint32_t id) const;
+  bool fixed(int i) const { return active_[static_cast<size_t>(i)].fixed; }
+
   // The keyframe's settled pose: regions anchored on it are placed again with it.
   void settle(int32_t keyframe_id, const Eigen::Isometry3d& T_world_cam);
 
@@ -110,6 +130,7 @@ class FineRegionMap {
     WeldRegion region;
     Eigen::Isometry3d T_world_region = Eigen::Isometry3d::Identity();
     Eigen::Isometry3d T_region_world = Eigen::Isometry3d::Identity();
+    bool fixed = false;          // the operator's box (add_fixed, set_fixed_box)
     int64_t segment_points = 0;  // fine points of the current segment inside it
     // Camera centres (segment frame) of the current segment's points inserted for this region,
     // summed with the number of points each keyframe inserted: the region's viewpoint.

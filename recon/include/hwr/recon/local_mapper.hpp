@@ -111,6 +111,9 @@ class LocalMapper {
     return fine_.add(detection, T_world_cam);
   }
   const FineRegionMap& fine_map() const { return fine_; }
+  // The operator's corrections of the welding regions (fine_region_map.hpp add_fixed, set_fixed_box,
+  // remove).
+  FineRegionMap& fine_map_for_operator() { return fine_; }
 
   LocalMapper(LocalMapper&&) noexcept;
   LocalMapper& operator=(LocalMapper&&) noexcept;

@@ -1,0 +1,211 @@
+#include "operator_channel.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <utility>
+
+#include "hwr/core/log.hpp"
+
+namespace hwr::robot {
+namespace {
+
+// The whole list goes out again this often: a ground station that (re)started meanwhile catches up.
+constexpr int64_t kRepublishNs = 5'000'000'000;
+
+// The image rectangle of a box (T_cam_box, half sizes) on its keyframe: its corners in front of the
+// camera projected, clipped to the image. Empty when no corner is in front.
+cv::Rect2f box_rect_px(const Eigen::Isometry3d& T_cam_box, const Eigen::Vector3d& half,
+                       const hal::PinholeIntrinsics& K) {
+  float u0 = std::numeric_limits<float>::max(), v0 = u0, u1 = -u0, v1 = -u0;
+  for (int i = 0; i < 8; ++i) {
+    const Eigen::Vector3d c =
+        T_cam_box * Eigen::Vector3d((i & 4) ? half.x() : -half.x(), (i & 2) ? half.y() : -half.y(),
+                                    (i & 1) ? half.z() : -half.z());
+    if (c.z() < 1e-3) continue;
+    const float u = static_cast<float>(K.fx * c.x() / c.z() + K.cx);
+    const float v = static_cast<float>(K.fy * c.y() / c.z() + K.cy);
+    u0 = std::min(u0, u), u1 = std::max(u1, u), v0 = std::min(v0, v), v1 = std::max(v1, v);
+  }
+  if (u0 > u1) return {};
+  const float w = static_cast<float>(K.width), h = static_cast<float>(K.height);
+  u0 = std::clamp(u0, 0.0f, w), u1 = std::clamp(u1, 0.0f, w);
+  v0 = std::clamp(v0, 0.0f, h), v1 = std::clamp(v1, 0.0f, h);
+  return {u0, v0, u1 - u0, v1 - v0};
+}
+
+Eigen::Isometry3d box_pose(const double* centre, const double* q_wxyz) {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = Eigen::Quaterniond(q_wxyz[0], q_wxyz[1], q_wxyz[2], q_wxyz[3]).normalized().toRotationMatrix();
+  T.translation() = Eigen::Vector3d(centre[0], centre[1], centre[2]);
+  return T;
+}
+
+}  // namespace
+
+OperatorChannel::OperatorChannel(detect::DetectionLedger ledger, const hal::PinholeIntrinsics& K,
+                                 mapio::MapStreamer* streamer, std::string save_path)
+    : ledger_(std::move(ledger)), K_(K), streamer_(streamer), save_path_(std::move(save_path)) {
+  ids_.reserve(256);
+  ledger_.mark_all_changed();  // the list as it starts (the prior map's) goes out first
+}
+
+bool OperatorChannel::suppress(const Eigen::Isometry3d& T_world_box, const Eigen::Vector3d& half_size_m) {
+  if (!ledger_.suppressed(T_world_box, half_size_m)) return false;
+  ++counters_.detections_suppressed;
+  return true;
+}
+
+core::Status OperatorChannel::save() {
+  if (save_path_.empty()) return core::Status::Ok();
+  const core::Status st = ledger_.save(save_path_);
+  if (!st.ok()) ++counters_.save_errors;
+  return st;
+}
+
+void OperatorChannel::step(recon::FineRegionMap* fine, const estimation::KeyframeStore& keyframes,
+                           const Eigen::Isometry3d& T_map_world, bool map_frame_known, int64_t now_ns) {
+  (void)keyframes;
+  if (map_frame_known) {
+    ids_.clear();
+    ledger_.place(T_map_world, &ids_, now_ns);
+    restore_placed(fine, ids_);
+  }
+  sync_regions(*fine, T_map_world, now_ns);
+  if (streamer_ != nullptr) {
+    while (streamer_->take_operator_command(&command_))
+      apply_command(command_, fine, T_map_world, map_frame_known, now_ns);
+  }
+  publish(now_ns);
+}
+
+// The prior map's entries, now placed in this run's world, become regions again (not the rejected
+// ones: those only suppress detections). An operator's box stays fixed.
+void OperatorChannel::restore_placed(recon::FineRegionMap* fine, const std::vector<int64_t>& ids) {
+  for (const int64_t id : ids) {
+    const detect::LedgerEntry* e = ledger_.find(id);
+    if (e == nullptr || e->state == detect::DetectionState::kRejected || e->region_id >= 0) continue;
+    recon::WeldRegion r;
+    r.source = static_cast<recon::WeldRegionSource>(e->source);
+    r.confidence = e->confidence;
+    recon::set_weld_region_label(&r, detect::seam_kind_name(e->kind));
+    r.t_ns = e->keyframe_t_ns;
+    r.half_size_m = e->half_size_m;
+    int64_t region = -1;
+    if (e->operator_box) {
+      region = fine->add_fixed(r, e->T_world_box);
+    } else {
+      // Anchored on no keyframe (keyframe_id -1: settle() leaves it), its box at the identity "camera".
+      region = fine->add(r, e->T_world_box);
+    }
+    if (region < 0) continue;
+    ledger_.link_region(id, region);
+    ++counters_.regions_restored;
+  }
+}
+
+void OperatorChannel::sync_regions(const recon::FineRegionMap& fine, const Eigen::Isometry3d& T_map_world,
+                                   int64_t now_ns) {
+  for (int i = 0; i < fine.active_regions(); ++i) {
+    const recon::WeldRegion& r = fine.region(i);
+    if (r.source == recon::WeldRegionSource::kSimTruth) continue;  // not a detection (--regions truth)
+    detect::LedgerEntry seen;
+    seen.source = static_cast<detect::DetectionSource>(r.source);
+    seen.kind = recon::weld_region_label(r) == "butt" ? detect::SeamKind::kButt : detect::SeamKind::kFillet;
+    seen.confidence = r.confidence;
+    seen.keyframe_t_ns = r.t_ns;
+    if (r.keyframe_id >= 0) seen.box_px = box_rect_px(r.T_cam_region, r.half_size_m, K_);
+    seen.T_world_box = fine.T_world_region(i);
+    seen.half_size_m = r.half_size_m;
+    ledger_.observe_region(r.id, seen, T_map_world, now_ns);
+  }
+}
+
+void OperatorChannel::apply_command(const hwr_lcm::operator_command_t& msg, recon::FineRegionMap* fine,
+                                    const Eigen::Isometry3d& T_map_world, bool map_frame_known,
+                                    int64_t now_ns) {
+  detect::OperatorCommand c;
+  c.command_id = msg.command_id;
+  c.kind = static_cast<detect::OperatorCommandKind>(msg.kind);
+  c.detection_id = msg.detection_id;
+  c.keyframe_t_ns = msg.keyframe_t_ns;
+  c.box_px = cv::Rect2f(msg.box_px[0], msg.box_px[1], msg.box_px[2], msg.box_px[3]);
+  c.T_map_box = box_pose(msg.box_center_world_m, msg.box_q_world_box);
+  c.half_size_m = 0.5 * Eigen::Vector3d(msg.box_size_m[0], msg.box_size_m[1], msg.box_size_m[2]);
+  bool repeated = false;
+  const detect::CommandOutcome o = ledger_.apply(c, T_map_world, map_frame_known, now_ns, &repeated);
+  if (repeated) {
+    ++counters_.commands_repeated;
+  } else if (o.accepted) {
+    ++counters_.commands_applied;
+    // Mirror it on the map's regions.
+    const detect::LedgerEntry* e = ledger_.find(o.detection_id);
+    if (e != nullptr && e->placed) {
+      if (c.kind == detect::OperatorCommandKind::kReject && e->region_id >= 0) {
+        fine->remove(static_cast<uint32_t>(e->region_id));
+        ledger_.link_region(e->id, -1);
+      } else if (c.kind == detect::OperatorCommandKind::kMove && e->region_id >= 0) {
+        fine->set_fixed_box(static_cast<uint32_t>(e->region_id), e->T_world_box, e->half_size_m);
+      } else if (c.kind == detect::OperatorCommandKind::kAdd) {
+        restore_placed(fine, {e->id});
+      }
+    }
+    HWR_LOG_INFO("robot", "operator command %lld (%s): applied to detection %lld",
+                 static_cast<long long>(o.command_id), detect::operator_command_name(o.kind),
+                 static_cast<long long>(o.detection_id));
+  } else {
+    ++counters_.commands_refused;
+    HWR_LOG_WARN("robot", "operator command %lld (%s): refused: %s", static_cast<long long>(o.command_id),
+                 detect::operator_command_name(o.kind), o.reason.c_str());
+  }
+  // Durable before it is acknowledged: an acknowledged command survives a restart of the robot.
+  if (!repeated) {
+    const core::Status st = save();
+    if (!st.ok())
+      HWR_LOG_ERROR("robot", "operator: the detection list was not saved: %s", st.message().c_str());
+  }
+  hwr_lcm::command_ack_t ack;
+  ack.t_ns = now_ns;
+  ack.command_id = o.command_id;
+  ack.accepted = o.accepted ? 1 : 0;
+  ack.reason = o.reason;
+  ack.detection_id = o.detection_id;
+  if (streamer_ != nullptr) streamer_->post_command_ack(ack);
+}
+
+void OperatorChannel::publish(int64_t now_ns) {
+  if (streamer_ == nullptr) return;
+  if (last_full_publish_ns_ < 0 || now_ns - last_full_publish_ns_ >= kRepublishNs) {
+    ledger_.mark_all_changed();
+    last_full_publish_ns_ = now_ns;
+  }
+  ledger_.take_changed(&ids_);
+  for (const int64_t id : ids_) {
+    const detect::LedgerEntry* e = ledger_.find(id);
+    if (e == nullptr) continue;
+    hwr_lcm::detection_t& d = detection_;
+    d.t_ns = e->updated_t_ns;
+    d.detection_id = e->id;
+    d.segment_id = -1;
+    d.keyframe_t_ns = e->keyframe_t_ns;
+    d.source = static_cast<int8_t>(e->source);
+    d.state = static_cast<int8_t>(e->state);
+    d.confidence = std::clamp(e->confidence, 0.0f, 1.0f);
+    d.box_px[0] = e->box_px.x, d.box_px[1] = e->box_px.y;
+    d.box_px[2] = e->box_px.width, d.box_px[3] = e->box_px.height;
+    const Eigen::Vector3d t = e->T_map_box.translation();
+    const Eigen::Quaterniond q(e->T_map_box.linear());
+    for (int k = 0; k < 3; ++k) {
+      d.box_center_world_m[k] = t[k];
+      d.box_size_m[k] = 2.0 * e->half_size_m[k];
+    }
+    d.box_q_world_box[0] = q.w(), d.box_q_world_box[1] = q.x();
+    d.box_q_world_box[2] = q.y(), d.box_q_world_box[3] = q.z();
+    d.num_seam_points = 0;  // the map keeps boxes, not seam lines
+    d.seam_world_m.clear();
+    streamer_->post_detection(d);
+    ++counters_.published;
+  }
+}
+
+}  // namespace hwr::robot

@@ -1,0 +1,70 @@
+#pragma once
+// hwr-robot's side of the operator channel (issue #7 item 4; docs/detection.md "Operator"): the
+// map's welding regions as the robot's detection list (detect/detection_ledger.hpp), published to
+// the ground station on HWR_DETECTION, and the operator's commands from HWR_OPERATOR_CMD applied to
+// the list and mirrored on the fine region map, answered on HWR_OPERATOR_ACK, and saved in the map
+// store (DIR/detections.yaml) before they are acknowledged. The link is the MapStreamer's (its thread
+// sends and receives); everything here runs on the mapping task.
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <Eigen/Geometry>
+
+#include "hwr/detect/detection_ledger.hpp"
+#include "hwr/estimation/keyframe_store.hpp"
+#include "hwr/hal/pinhole_camera.hpp"
+#include "hwr/mapio/map_streamer.hpp"
+#include "hwr/recon/fine_region_map.hpp"
+
+namespace hwr::robot {
+
+struct OperatorChannelCounters {
+  uint64_t commands_applied = 0, commands_refused = 0, commands_repeated = 0;
+  uint64_t detections_suppressed = 0;  // detections on a rejected region, not added to the map
+  uint64_t regions_restored = 0;       // entries of the prior map's list made regions of this run
+  uint64_t save_errors = 0;
+  uint64_t published = 0;
+};
+
+class OperatorChannel {
+ public:
+  // `ledger`: the list to start from (the prior map's, or empty). `save_path`: where the list is kept
+  // ("" = not kept). `streamer` may be null (no link: the list is only kept).
+  OperatorChannel(detect::DetectionLedger ledger, const hal::PinholeIntrinsics& K,
+                  mapio::MapStreamer* streamer, std::string save_path);
+
+  // Whether a detection with this box (run's world frame) lies on a rejected region (counted).
+  bool suppress(const Eigen::Isometry3d& T_world_box, const Eigen::Vector3d& half_size_m);
+
+  // Mapping task, after the new keyframes' detections went into the fine map. T_map_world: the frame
+  // the robot publishes in; map_frame_known: whether this run knows it (false before relocalizing
+  // against a prior map, whose list is then not placed yet).
+  void step(recon::FineRegionMap* fine, const estimation::KeyframeStore& keyframes,
+            const Eigen::Isometry3d& T_map_world, bool map_frame_known, int64_t now_ns);
+
+  core::Status save();
+  const detect::DetectionLedger& ledger() const { return ledger_; }
+  const OperatorChannelCounters& counters() const { return counters_; }
+  const std::string& save_path() const { return save_path_; }
+
+ private:
+  void restore_placed(recon::FineRegionMap* fine, const std::vector<int64_t>& ids);
+  void sync_regions(const recon::FineRegionMap& fine, const Eigen::Isometry3d& T_map_world, int64_t now_ns);
+  void apply_command(const hwr_lcm::operator_command_t& msg, recon::FineRegionMap* fine,
+                     const Eigen::Isometry3d& T_map_world, bool map_frame_known, int64_t now_ns);
+  void publish(int64_t now_ns);
+
+  detect::DetectionLedger ledger_;
+  hal::PinholeIntrinsics K_;
+  mapio::MapStreamer* streamer_;
+  std::string save_path_;
+  OperatorChannelCounters counters_;
+  hwr_lcm::operator_command_t command_;
+  hwr_lcm::detection_t detection_;
+  std::vector<int64_t> ids_;
+  int64_t last_full_publish_ns_ = -1;
+};
+
+}  // namespace hwr::robot
