@@ -328,23 +328,6 @@ void detect_truth_regions(Robot* r) {
   r->detected_upto = std::max(r->detected_upto, kfs.newest_id());
 }
 
-// A detection as a welding region of the map: its box in the keyframe's camera frame (the source
-// numbers are shared, detect/detection.hpp).
-hwr::recon::WeldRegion to_weld_region(const hwr::detect::Detection& d) {
-  static_assert(static_cast<int>(hwr::detect::DetectionSource::kGeometry) ==
-                    static_cast<int>(hwr::recon::WeldRegionSource::kGeometry),
-                "detection and weld-region sources share their numbers");
-  hwr::recon::WeldRegion w;
-  w.source = static_cast<hwr::recon::WeldRegionSource>(d.source);
-  w.confidence = d.confidence;
-  hwr::recon::set_weld_region_label(&w, hwr::detect::seam_kind_name(d.kind));
-  w.keyframe_id = d.keyframe_id;
-  w.t_ns = d.t_ns;
-  w.T_cam_region = d.T_cam_box;
-  w.half_size_m = d.half_size_m;
-  return w;
-}
-
 // --regions geometry: each new keyframe whose images are still in the store goes through the seam
 // detector; its regions are placed with the keyframe's estimated pose. Before the keyframes are fused.
 void detect_geometry_regions(Robot* r) {
@@ -372,7 +355,7 @@ void detect_geometry_regions(Robot* r) {
       if (r->operator_channel != nullptr &&
           r->operator_channel->suppress(kf->T_world_cam * d.T_cam_box, d.half_size_m))
         continue;  // on a region the operator rejected
-      r->mapper->add_weld_region(to_weld_region(d), kf->T_world_cam);
+      r->mapper->add_weld_region(hwr::recon::weld_region_from_detection(d), kf->T_world_cam);
       ++r->region_detections;
     }
   }

@@ -18,6 +18,8 @@
 
 #include <Eigen/Geometry>
 
+#include "hwr/detect/detection.hpp"
+
 namespace hwr::recon {
 
 // Who found the region. kSimTruth: the simulator's ground-truth joints seen from the keyframe's true
@@ -50,6 +52,10 @@ inline bool inside_region_box(const Eigen::Vector3d& p_region, const Eigen::Vect
 // Copies at most kWeldRegionLabelBytes - 1 bytes of `text` (the rest is cut) and NUL-terminates.
 void set_weld_region_label(WeldRegion* region, const std::string& text);
 std::string weld_region_label(const WeldRegion& region);
+
+// A detector's detection (detect/detection.hpp) as a welding region: its box in the keyframe's camera
+// frame, labelled with the seam's kind ("fillet", "butt"). The source numbers are shared.
+WeldRegion weld_region_from_detection(const detect::Detection& detection);
 
 // A region as a closed segment keeps it.
 struct StoredWeldRegion {
