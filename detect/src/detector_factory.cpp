@@ -1,6 +1,9 @@
 #include "hwr/detect/detector_factory.hpp"
 
 #include "hwr/detect/onnx_detector.hpp"
+#if HWR_HAVE_TENSORRT
+#include "hwr/detect/tensorrt_detector.hpp"
+#endif
 
 namespace hwr::detect {
 
@@ -14,9 +17,15 @@ core::Expected<std::unique_ptr<Detector>> make_model_detector(const DetectorChoi
     if (!d.ok()) return d.status();
     return std::unique_ptr<Detector>(std::move(d.value()));
   }
+#if HWR_HAVE_TENSORRT
+  auto d = TensorRtDetector::create(choice.model, K);
+  if (!d.ok()) return d.status();
+  return std::unique_ptr<Detector>(std::move(d.value()));
+#else
   return core::Unavailable("tensorrt detector: engine '" + choice.model.model_path +
                            "' not loaded: built without TensorRT (NvInfer.h and libnvinfer were not found "
                            "when configuring; see HWR_WITH_TENSORRT)");
+#endif
 }
 
 }  // namespace
@@ -33,7 +42,7 @@ const char* detector_backend_name(DetectorBackend backend) {
   return "?";
 }
 
-bool tensorrt_built() { return false; }
+bool tensorrt_built() { return HWR_HAVE_TENSORRT != 0; }
 
 core::Expected<MadeDetector> make_detector(const DetectorChoice& choice, const hal::PinholeIntrinsics& K) {
   MadeDetector made;
