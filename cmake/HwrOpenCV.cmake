@@ -2,7 +2,7 @@
 # On the host, Debian's libopencv-dev ships OpenCVConfig.cmake. For the arm64 cross build only the
 # per-module -dev packages can be installed beside the amd64 ones (libopencv-dev is not
 # multi-arch co-installable) and they carry no CMake config, so each module is imported directly.
-set(HWR_OPENCV_MODULES core imgproc imgcodecs calib3d features2d flann)
+set(HWR_OPENCV_MODULES core imgproc imgcodecs calib3d features2d flann dnn)
 find_package(OpenCV QUIET COMPONENTS ${HWR_OPENCV_MODULES})
 if(OpenCV_FOUND)
   message(STATUS "OpenCV ${OpenCV_VERSION} (CMake config)")

@@ -25,8 +25,8 @@ packages=(
   util-linux iproute2 nftables
   # fuzz targets (libFuzzer ships with Debian's clang)
   clang
-  # tests and benches
-  libgtest-dev libgmock-dev libbenchmark-dev
+  # tests and benches (python3-onnx, python3-numpy: the tiny ONNX detector models the detect tests build)
+  libgtest-dev libgmock-dev libbenchmark-dev python3-onnx python3-numpy
 )
 bench_peers=()
 agx=()

@@ -14,7 +14,7 @@ packages=(
   libc6-dev libstdc++-12-dev
   libeigen3-dev libyaml-cpp-dev
   libopencv-core-dev libopencv-imgproc-dev libopencv-imgcodecs-dev libopencv-calib3d-dev
-  libopencv-features2d-dev libopencv-flann-dev
+  libopencv-features2d-dev libopencv-flann-dev libopencv-dnn-dev
   libusb-1.0-0-dev libflann-dev libdraco-dev liblcm-dev libembree-dev
   libgtest-dev libgmock-dev libbenchmark-dev
 )
