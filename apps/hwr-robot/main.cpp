@@ -46,7 +46,7 @@
 #include "hwr/recon/segment_writer.hpp"
 #include "hwr/recon/truth_weld_regions.hpp"
 #include "operator_channel.hpp"
-#include "hwr/detect/geometric_seam_detector.hpp"
+#include "hwr/detect/detector_factory.hpp"
 #if HWR_WITH_SIM
 #include "hwr/sim/run_writer.hpp"
 #include "hwr/sim/scenario.hpp"
@@ -84,7 +84,9 @@ struct Args {
   std::string traj_out, timing_out, gt_out, faults, config, ba_export, map_out, cloud_out;
   std::string link, robot_id = "robot1";
   std::string prior_map;
-  std::string regions;  // "truth": the simulator's joints as detections; "geometry": the seam detector
+  // "truth": the simulator's joints as detections; "geometry": the seam detector; "onnx:PATH",
+  // "tensorrt:PATH": a learned detector (falls back to the seam detector when the model is unusable).
+  std::string regions;
   double link_wait_s = 30.0;
   bool use_imu = true, local_ba = true, full_ba = true;
 };
@@ -96,7 +98,7 @@ void usage() {
       "                 [--traj-out FILE] [--timing-out FILE] [--gt-out FILE] [--faults SPEC]\n"
       "                 [--no-imu] [--no-local-ba] [--no-full-ba] [--ba-export FILE]\n"
       "                 [--map-out DIR] [--cloud-out FILE] [--link URL [--robot-id ID] [--link-wait S]]\n"
-      "                 [--prior-map DIR] [--regions truth|geometry]\n"
+      "                 [--prior-map DIR] [--regions truth|geometry|onnx:MODEL|tensorrt:ENGINE]\n"
       "  KIND:WHAT  sim:NAME|FILE.yaml (the simulator renders live), sim:DIR (a run written by hwr-sim),\n"
       "             tum:DIR (TUM RGB-D folder), euroc:DIR (EuRoC folder or mav0)\n"
       "  --config FILE      settings (YAML, sections estimation: and map:; config/estimation.yaml and\n"
@@ -123,7 +125,13 @@ void usage() {
       "                     with the keyframe's estimated pose (a perfect detector; docs/reconstruction.md)\n"
       "  --regions geometry the geometric seam detector (detect/, any source with depth):\n"
       "                     fillet joints found on each keyframe's depth image, placed with its\n"
-      "                     estimated pose (docs/detection.md)\n");
+      "                     estimated pose (docs/detection.md)\n"
+      "  --regions onnx:MODEL      a learned detector (ONNX through OpenCV DNN: YOLOv10 [1,N,6] or\n"
+      "  --regions tensorrt:ENGINE [1,4+C,N] heads; TensorRT when built with it); a missing, corrupt or\n"
+      "                     incompatible model is said and the geometric seam detector is used instead\n"
+      "  With a detector, the welding regions are a list the operator corrects from the ground station\n"
+      "  (confirm, reject, move, add over --link), kept in --map-out DIR/detections.yaml and read back\n"
+      "  from --prior-map DIR on the next visit (docs/detection.md)\n");
 }
 
 // Replay paced at sensor rate: the timeline is the source's time, advancing with CLOCK_MONOTONIC.
@@ -328,9 +336,10 @@ void detect_truth_regions(Robot* r) {
   r->detected_upto = std::max(r->detected_upto, kfs.newest_id());
 }
 
-// --regions geometry: each new keyframe whose images are still in the store goes through the seam
-// detector; its regions are placed with the keyframe's estimated pose. Before the keyframes are fused.
-void detect_geometry_regions(Robot* r) {
+// --regions geometry|onnx:|tensorrt:: each new keyframe whose images are still in the store goes
+// through the detector; its regions are placed with the keyframe's estimated pose. Before the
+// keyframes are fused.
+void detect_regions(Robot* r) {
   const hwr::estimation::KeyframeStore& kfs = r->estimator->tracker().keyframes();
   if (kfs.empty()) return;
   for (int id = std::max(r->detected_upto + 1, kfs.oldest_id()); id <= kfs.newest_id(); ++id) {
@@ -347,7 +356,7 @@ void detect_geometry_regions(Robot* r) {
     const hwr::core::Status s = r->detector->detect(view, r->detected);
     if (!s.ok()) {
       if (r->detect_errors++ == 0)
-        HWR_LOG_WARN("robot", "seam detector: keyframe %d: %s", id, s.message().c_str());
+        HWR_LOG_WARN("robot", "detector: keyframe %d: %s", id, s.message().c_str());
       continue;
     }
     for (int i = 0; i < r->detected->size(); ++i) {
@@ -365,7 +374,7 @@ void detect_geometry_regions(Robot* r) {
 void mapping_task(void* ctx, int64_t now_ns) {
   auto* r = static_cast<Robot*>(ctx);
   if (r->truth_joints != nullptr) detect_truth_regions(r);
-  if (r->detector != nullptr) detect_geometry_regions(r);
+  if (r->detector != nullptr) detect_regions(r);
   if (r->operator_channel != nullptr) {
     // Before relocalizing against a prior map, this run does not know the frame of the prior's list.
     const bool map_frame_known = r->reloc == nullptr || r->in_prior_frame;
@@ -758,8 +767,8 @@ int run(const Args& args) {
   est_cfg.local_ba_enabled = est_cfg.local_ba_enabled && args.local_ba;
   est_cfg.full_ba_at_end = est_cfg.full_ba_at_end && args.full_ba;
   auto estimator = std::make_unique<hwr::estimation::PoseEstimator>(est_cfg, info);
-  // The seam detector's boxes hold what one keyframe saw: a region grows to hold every detection of it.
-  if (args.regions == "geometry") map_cfg.fine.grow_to_cover = true;
+  // A detector's boxes hold what one keyframe saw: a region grows to hold every detection of it.
+  if (args.regions != "truth" && !args.regions.empty()) map_cfg.fine.grow_to_cover = true;
   auto mapper = hwr::recon::LocalMapper::create(map_cfg, info.intrinsics, est_cfg.tracker.orb.max_features);
   if (!mapper.ok()) {
     std::fprintf(stderr, "hwr-robot: map: %s\n", mapper.status().message().c_str());
@@ -919,20 +928,30 @@ int run(const Args& args) {
                  "placed with the estimated poses)\n",
                  truth_joints.size());
   }
-  std::unique_ptr<hwr::detect::GeometricSeamDetector> seam_detector;
-  const hwr::detect::GeometricSeamConfig seam_config;
-  hwr::detect::DetectionList seam_detections(seam_config.max_detections);
-  if (args.regions == "geometry") {
-    auto d = hwr::detect::GeometricSeamDetector::create(seam_config, info.intrinsics);
-    if (!d.ok()) {
-      std::fprintf(stderr, "hwr-robot: --regions geometry: %s\n", d.status().message().c_str());
+  hwr::detect::MadeDetector detector;
+  hwr::detect::DetectionList detections(32);
+  if (args.regions != "truth" && !args.regions.empty()) {
+    hwr::detect::DetectorChoice choice;
+    if (args.regions != "geometry") {
+      const size_t colon = args.regions.find(':');
+      choice.backend = args.regions.compare(0, colon, "onnx") == 0 ? hwr::detect::DetectorBackend::kOnnx
+                                                                    : hwr::detect::DetectorBackend::kTensorRt;
+      choice.model.model_path = args.regions.substr(colon + 1);
+    }
+    auto made = hwr::detect::make_detector(choice, info.intrinsics);
+    if (!made.ok()) {
+      std::fprintf(stderr, "hwr-robot: --regions %s: %s\n", args.regions.c_str(), made.status().message().c_str());
       return 2;
     }
-    seam_detector = std::move(d.value());
-    robot.detector = seam_detector.get();
-    robot.detected = &seam_detections;
-    std::fprintf(stderr,
-                 "hwr-robot: welding regions: the geometric seam detector on each keyframe's depth\n");
+    detector = std::move(made.value());
+    if (detector.fell_back()) {
+      std::fprintf(stderr, "hwr-robot: --regions %s: the model is unusable (%s); using the geometric seam detector\n",
+                   args.regions.c_str(), detector.fallback_reason.c_str());
+    }
+    robot.detector = detector.detector.get();
+    robot.detected = &detections;
+    std::fprintf(stderr, "hwr-robot: welding regions: the %s detector on each keyframe\n",
+                 hwr::detect::detector_backend_name(detector.backend));
   }
   // The operator channel: the detectors' regions as a list the operator corrects (operator_channel.hpp),
   // kept in the map store and, on the next visit, read back from the prior map.
@@ -1314,8 +1333,12 @@ int main(int argc, char** argv) {
       args.prior_map = value("--prior-map");
     } else if (a == "--regions") {
       args.regions = value("--regions");
-      if (args.regions != "truth" && args.regions != "geometry") {
-        std::fprintf(stderr, "hwr-robot: --regions: expected 'truth' or 'geometry', got '%s'\n",
+      const bool model = (args.regions.rfind("onnx:", 0) == 0 && args.regions.size() > 5) ||
+                         (args.regions.rfind("tensorrt:", 0) == 0 && args.regions.size() > 9);
+      if (args.regions != "truth" && args.regions != "geometry" && !model) {
+        std::fprintf(stderr,
+                     "hwr-robot: --regions: expected 'truth', 'geometry', 'onnx:MODEL' or 'tensorrt:ENGINE', "
+                     "got '%s'\n",
                      args.regions.c_str());
         return 2;
       }

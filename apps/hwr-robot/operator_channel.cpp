@@ -46,6 +46,8 @@ Eigen::Isometry3d box_pose(const double* centre, const double* q_wxyz) {
 OperatorChannel::OperatorChannel(detect::DetectionLedger ledger, const hal::PinholeIntrinsics& K,
                                  mapio::MapStreamer* streamer, std::string save_path)
     : ledger_(std::move(ledger)), K_(K), streamer_(streamer), save_path_(std::move(save_path)) {
+  auto lifter = detect::BoxLifter::create(detect::BoxLiftConfig{}, K);
+  if (lifter.ok()) lifter_.emplace(std::move(lifter.value()));
   ids_.reserve(256);
   ledger_.mark_all_changed();  // the list as it starts (the prior map's) goes out first
 }
@@ -65,7 +67,6 @@ core::Status OperatorChannel::save() {
 
 void OperatorChannel::step(recon::FineRegionMap* fine, const estimation::KeyframeStore& keyframes,
                            const Eigen::Isometry3d& T_map_world, bool map_frame_known, int64_t now_ns) {
-  (void)keyframes;
   if (map_frame_known) {
     ids_.clear();
     ledger_.place(T_map_world, &ids_, now_ns);
@@ -74,7 +75,7 @@ void OperatorChannel::step(recon::FineRegionMap* fine, const estimation::Keyfram
   sync_regions(*fine, T_map_world, now_ns);
   if (streamer_ != nullptr) {
     while (streamer_->take_operator_command(&command_))
-      apply_command(command_, fine, T_map_world, map_frame_known, now_ns);
+      apply_command(command_, fine, keyframes, T_map_world, map_frame_known, now_ns);
   }
   publish(now_ns);
 }
@@ -121,7 +122,27 @@ void OperatorChannel::sync_regions(const recon::FineRegionMap& fine, const Eigen
   }
 }
 
+bool OperatorChannel::lift_drawn(const estimation::KeyframeStore& keyframes, int64_t keyframe_t_ns,
+                                 const cv::Rect2f& box_px, const Eigen::Isometry3d& T_map_world,
+                                 Eigen::Isometry3d* T_map_box, Eigen::Vector3d* half_size_m) {
+  if (!lifter_ || keyframes.empty()) return false;
+  for (int id = keyframes.oldest_id(); id <= keyframes.newest_id(); ++id) {
+    const estimation::Keyframe* kf = keyframes.get(id);
+    if (kf == nullptr || kf->t_ns != keyframe_t_ns) continue;
+    const cv::Mat* depth = keyframes.depth_m(id);
+    if (depth == nullptr || depth->empty()) return false;
+    detect::Detection d;
+    auto lifted = lifter_->lift(*depth, box_px, &d);
+    if (!lifted.ok() || lifted.value() != detect::LiftOutcome::kLifted) return false;
+    *T_map_box = T_map_world * kf->T_world_cam * d.T_cam_box;
+    *half_size_m = d.half_size_m;
+    return true;
+  }
+  return false;
+}
+
 void OperatorChannel::apply_command(const hwr_lcm::operator_command_t& msg, recon::FineRegionMap* fine,
+                                    const estimation::KeyframeStore& keyframes,
                                     const Eigen::Isometry3d& T_map_world, bool map_frame_known,
                                     int64_t now_ns) {
   detect::OperatorCommand c;
@@ -132,6 +153,10 @@ void OperatorChannel::apply_command(const hwr_lcm::operator_command_t& msg, reco
   c.box_px = cv::Rect2f(msg.box_px[0], msg.box_px[1], msg.box_px[2], msg.box_px[3]);
   c.T_map_box = box_pose(msg.box_center_world_m, msg.box_q_world_box);
   c.half_size_m = 0.5 * Eigen::Vector3d(msg.box_size_m[0], msg.box_size_m[1], msg.box_size_m[2]);
+  // add without a world box: the drawn rectangle lifted with the keyframe's depth (a command whose
+  // keyframe is no longer kept and that has no world box is refused by the ledger).
+  if (c.kind == detect::OperatorCommandKind::kAdd && !(c.half_size_m.minCoeff() > 0))
+    lift_drawn(keyframes, c.keyframe_t_ns, c.box_px, T_map_world, &c.T_map_box, &c.half_size_m);
   bool repeated = false;
   const detect::CommandOutcome o = ledger_.apply(c, T_map_world, map_frame_known, now_ns, &repeated);
   if (repeated) {

@@ -7,11 +7,13 @@
 // sends and receives); everything here runs on the mapping task.
 
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include <Eigen/Geometry>
 
+#include "hwr/detect/box_lift.hpp"
 #include "hwr/detect/detection_ledger.hpp"
 #include "hwr/estimation/keyframe_store.hpp"
 #include "hwr/hal/pinhole_camera.hpp"
@@ -53,11 +55,17 @@ class OperatorChannel {
   void restore_placed(recon::FineRegionMap* fine, const std::vector<int64_t>& ids);
   void sync_regions(const recon::FineRegionMap& fine, const Eigen::Isometry3d& T_map_world, int64_t now_ns);
   void apply_command(const hwr_lcm::operator_command_t& msg, recon::FineRegionMap* fine,
-                     const Eigen::Isometry3d& T_map_world, bool map_frame_known, int64_t now_ns);
+                     const estimation::KeyframeStore& keyframes, const Eigen::Isometry3d& T_map_world,
+                     bool map_frame_known, int64_t now_ns);
+  // add: the rectangle drawn on a keyframe lifted to a 3D box (map frame) with that keyframe's depth,
+  // when its images are still kept. false when they are not, or too few depth pixels lie inside.
+  bool lift_drawn(const estimation::KeyframeStore& keyframes, int64_t keyframe_t_ns, const cv::Rect2f& box_px,
+                  const Eigen::Isometry3d& T_map_world, Eigen::Isometry3d* T_map_box, Eigen::Vector3d* half_size_m);
   void publish(int64_t now_ns);
 
   detect::DetectionLedger ledger_;
   hal::PinholeIntrinsics K_;
+  std::optional<detect::BoxLifter> lifter_;  // absent only for invalid intrinsics (then add needs a world box)
   mapio::MapStreamer* streamer_;
   std::string save_path_;
   OperatorChannelCounters counters_;

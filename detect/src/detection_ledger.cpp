@@ -223,7 +223,9 @@ CommandOutcome DetectionLedger::apply(const OperatorCommand& c, const Eigen::Iso
   if (c.kind == OperatorCommandKind::kAdd) {
     if (!(c.box_px.width > 0 && c.box_px.height > 0)) return refuse("add: the drawn rectangle has no area");
     if (!valid_box(c.T_map_box, c.half_size_m))
-      return refuse("add: no 3D box (the keyframe's depth is gone and no world box was given)");
+      return refuse(
+          "add: no 3D box (no world box given, and the keyframe's depth is no longer kept or too sparse "
+          "inside the rectangle)");
     LedgerEntry e;
     e.id = next_id_++;
     e.source = DetectionSource::kOperator;

@@ -1,0 +1,2 @@
+confirm 5
+bogus
