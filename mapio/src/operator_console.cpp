@@ -503,10 +503,20 @@ core::Expected<int64_t> OperatorConsole::send(hwr_lcm::operator_command_t comman
                             " (0 confirm, 1 reject, 2 move, 3 add)");
   }
   clear_ignored_fields(&command);
+  command.command_id = 0;
+  command.t_ns = 0;
+  const core::Status valid = verify_operator_command(command, config_.wire);
+  if (!valid.ok()) {
+    // The wire's message starts "operator_command_t command_id 0: "; no id is assigned yet.
+    const size_t colon = valid.message().find(": ");
+    const std::string why = colon == std::string::npos ? valid.message() : valid.message().substr(colon + 2);
+    return core::Status(valid.code(), std::string("operator command (") +
+                                          operator_command_kind_name(command.kind) + " for robot '" +
+                                          command.robot_id + "'): " + why);
+  }
   const int64_t now = realtime_ns();
   command.command_id = std::max(now, last_command_id_ + 1);
   command.t_ns = now;
-  HWR_RETURN_IF_ERROR(verify_operator_command(command, config_.wire));
   if (robots_.count(command.robot_id) == 0 && static_cast<int>(robots_.size()) >= config_.max_robots) {
     return core::Unavailable("operator command for robot " + command.robot_id + ": already " +
                              std::to_string(config_.max_robots) + " robots (max_robots)");
