@@ -1,9 +1,17 @@
-// hwr-ground: the ground-station chunk receiver (issue #5 item 4; docs/mapio.md).
+// hwr-ground: the ground station (issue #5 item 4, issue #7 item 4; docs/mapio.md).
 //   hwr-ground --out DIR [--link URL] [--status-interval S] [--exit-after-idle S] [--no-pcd]
+//              [--operator-input FILE] [--operator-robot ID]
 // Receives the robot's map chunks over LCM, verifies and stores them (DIR/<robot>/<run>/seg_*/),
 // acknowledges them, writes each completed segment as PLY and PCD (DIR/<robot>/<run>/maps/) and, on
 // exit, the merged map (maps/merged.ply, merged.pcd). Restarting on the same DIR resumes: what is
 // stored is reported to the robot, which sends only the rest. A live status line goes to stderr.
+// Operator channel (mapio/operator_console.hpp): the robots' detections (HWR_DETECTION) are kept under
+// DIR/<robot>/operator/ (detections.txt lists them); with --operator-input, commands read from FILE
+// (`-`: stdin; a FIFO works: it is read without blocking) are sent on HWR_OPERATOR_CMD until the robot
+// acknowledges them on HWR_OPERATOR_ACK, and each outcome is printed to stderr. Line syntax:
+// operator_input.hpp; a bad line is reported with its number and skipped. Commands go to the line's
+// --robot ID, else --operator-robot ID, else the only robot whose detections arrived. Pending
+// commands are re-sent after a restart.
 // Stops on SIGINT/SIGTERM, or with --exit-after-idle S once S seconds pass without a new chunk
 // (counted from the start when none arrives). Exit: 0 ok, 1 runtime error, 2 usage.
 
@@ -11,13 +19,18 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <memory>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include <chrono>
 
 #include "hwr/core/log.hpp"
 #include "hwr/mapio/ground_station.hpp"
 #include "hwr/mapio/lcm_link.hpp"
+#include "hwr/mapio/operator_console.hpp"
+#include "operator_input.hpp"
 
 namespace {
 
@@ -31,11 +44,86 @@ int usage(const char* msg) {
   std::fprintf(
       stderr,
       "usage: hwr-ground --out DIR [--link URL] [--status-interval S] [--exit-after-idle S] [--no-pcd]\n"
+      "                  [--operator-input FILE] [--operator-robot ID]\n"
       "  --link URL            LCM URL (default %s)\n"
       "  --status-interval S   seconds between status lines (default 1; 0: none)\n"
-      "  --exit-after-idle S   exit S seconds after the last new chunk (or after start, if none)\n",
+      "  --exit-after-idle S   exit S seconds after the last new chunk (or after start, if none)\n"
+      "  --no-pcd              write PLY maps only\n"
+      "  --operator-input FILE operator commands, one per line (-: stdin; a FIFO works):\n"
+      "                          [--robot ID] confirm ID | reject ID\n"
+      "                          [--robot ID] move ID CX CY CZ SX SY SZ [QW QX QY QZ]   (world, metres)\n"
+      "                          [--robot ID] add KEYFRAME_T_NS X Y W H [CX CY CZ SX SY SZ]   (pixels)\n"
+      "  --operator-robot ID   robot of the commands without --robot (default: the only robot whose\n"
+      "                        detections arrived)\n",
       hwr::mapio::kDefaultLinkUrl);
   return 2;
+}
+
+// Which robot a command line without --robot is for; empty with *why set when it cannot be told.
+std::string default_robot(const hwr::mapio::OperatorConsole& console, const std::string& option,
+                          std::string* why) {
+  if (!option.empty()) return option;
+  const std::vector<std::string> robots = console.robots_with_detections();
+  if (robots.size() == 1) return robots[0];
+  if (robots.empty()) {
+    *why =
+        "no robot has sent detections yet: put --robot ID before the command or start hwr-ground with "
+        "--operator-robot ID";
+  } else {
+    std::string list;
+    for (const std::string& r : robots) list += (list.empty() ? "" : ", ") + r;
+    *why = std::to_string(robots.size()) + " robots have sent detections (" + list +
+           "): put --robot ID before the command or start hwr-ground with --operator-robot ID";
+  }
+  return "";
+}
+
+void send_operator_line(hwr::mapio::OperatorConsole& console, const std::string& robot_option,
+                        const std::string& input_name, int64_t number, const std::string& text) {
+  const std::string where = input_name + " line " + std::to_string(number);
+  if (!text.empty() && text[0] == hwr::ground::OperatorInput::kTooLong) {
+    std::fprintf(stderr, "hwr-ground: %s: %s, skipped\n", where.c_str(), text.c_str() + 1);
+    return;
+  }
+  auto line = hwr::ground::parse_operator_line(text);
+  if (!line.ok()) {
+    std::fprintf(stderr, "hwr-ground: %s: %s, skipped\n", where.c_str(), line.status().message().c_str());
+    return;
+  }
+  if (line->empty) return;
+  std::string why;
+  line->command.robot_id =
+      line->robot_id.empty() ? default_robot(console, robot_option, &why) : line->robot_id;
+  if (line->command.robot_id.empty()) {
+    std::fprintf(stderr, "hwr-ground: %s: %s; skipped\n", where.c_str(), why.c_str());
+    return;
+  }
+  auto id = console.send(line->command);
+  if (!id.ok()) {
+    std::fprintf(stderr, "hwr-ground: %s: %s, skipped\n", where.c_str(), id.status().message().c_str());
+    return;
+  }
+  std::fprintf(stderr, "hwr-ground: command %lld (%s) for %s: sending\n", static_cast<long long>(*id),
+               hwr::mapio::describe_operator_command(line->command).c_str(), line->command.robot_id.c_str());
+}
+
+void print_acknowledged(hwr::mapio::OperatorConsole& console) {
+  for (const hwr::mapio::OperatorCommandRecord& r : console.take_acknowledged()) {
+    const std::string what = hwr::mapio::describe_operator_command(r.command);
+    if (r.state == hwr::mapio::CommandState::kAccepted) {
+      const bool added = r.command.kind == static_cast<int8_t>(hwr::mapio::OperatorCommandKind::kAdd);
+      std::fprintf(stderr, "hwr-ground: command %lld (%s): accepted%s\n",
+                   static_cast<long long>(r.command.command_id), what.c_str(),
+                   added ? (", detection " + std::to_string(r.detection_id)).c_str() : "");
+    } else {
+      std::string reason = r.reason;
+      for (char& ch : reason) {
+        if (static_cast<unsigned char>(ch) < 0x20) ch = ' ';
+      }
+      std::fprintf(stderr, "hwr-ground: command %lld (%s): refused: %s\n",
+                   static_cast<long long>(r.command.command_id), what.c_str(), reason.c_str());
+    }
+  }
 }
 
 int64_t now_ns() {
@@ -48,6 +136,7 @@ int64_t now_ns() {
 
 int main(int argc, char** argv) {
   std::string out, url = hwr::mapio::kDefaultLinkUrl;
+  std::string operator_input_path, operator_robot;
   double status_s = 1.0, idle_exit_s = -1.0;
   bool pcd = true;
   for (int i = 1; i < argc; ++i) {
@@ -61,6 +150,12 @@ int main(int argc, char** argv) {
       status_s = std::atof(argv[++i]);
     } else if (a == "--exit-after-idle" && has_value) {
       idle_exit_s = std::atof(argv[++i]);
+    } else if (a == "--operator-input" && has_value) {
+      operator_input_path = argv[++i];
+    } else if (a == "--operator-robot" && has_value) {
+      operator_robot = argv[++i];
+      const hwr::core::Status st = hwr::mapio::GroundStore::validate_robot_id(operator_robot);
+      if (!st.ok()) return usage(("--operator-robot: " + st.message()).c_str());
     } else if (a == "--no-pcd") {
       pcd = false;
     } else if (a == "--help" || a == "-h") {
@@ -79,6 +174,24 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "hwr-ground: %s\n", station.status().message().c_str());
     return 1;
   }
+  auto opened_console = hwr::mapio::OperatorConsole::open(out);
+  if (!opened_console.ok()) {
+    std::fprintf(stderr, "hwr-ground: %s\n", opened_console.status().message().c_str());
+    return 1;
+  }
+  hwr::mapio::OperatorConsole& console = *opened_console.value();
+  for (const std::string& note : console.open_report().notes)
+    HWR_LOG_WARN("ground", "operator: %s", note.c_str());
+  std::unique_ptr<hwr::ground::OperatorInput> input;
+  if (!operator_input_path.empty()) {
+    auto opened_input = hwr::ground::OperatorInput::open(operator_input_path);
+    if (!opened_input.ok()) {
+      std::fprintf(stderr, "hwr-ground: %s\n", opened_input.status().message().c_str());
+      return 1;
+    }
+    input = std::make_unique<hwr::ground::OperatorInput>(std::move(opened_input.value()));
+  }
+  const std::string input_name = operator_input_path == "-" ? "stdin" : operator_input_path;
   auto link = hwr::mapio::LcmLink::open(url);
   if (!link.ok()) {
     std::fprintf(stderr, "hwr-ground: %s\n", link.status().message().c_str());
@@ -87,10 +200,19 @@ int main(int argc, char** argv) {
   hwr::mapio::GroundStation& g = *station.value();
   link->subscribe(hwr::mapio::kChannelMapChunk,
                   [&](const uint8_t* d, size_t n) { g.on_chunk_message(d, n, now_ns()); });
+  link->subscribe(hwr::mapio::kChannelDetection,
+                  [&](const uint8_t* d, size_t n) { console.on_detection_message(d, n, now_ns()); });
+  link->subscribe(hwr::mapio::kChannelOperatorAck,
+                  [&](const uint8_t* d, size_t n) { console.on_ack_message(d, n, now_ns()); });
   std::signal(SIGINT, on_signal);
   std::signal(SIGTERM, on_signal);
   std::fprintf(stderr, "hwr-ground: listening on %s, storing under %s (%lld chunks already stored)\n",
                url.c_str(), out.c_str(), static_cast<long long>(g.store().chunks_stored()));
+  if (console.pending_commands() > 0) {
+    std::fprintf(stderr, "hwr-ground: %lld operator commands still pending from before: sending them again\n",
+                 static_cast<long long>(console.pending_commands()));
+  }
+  std::vector<std::pair<int64_t, std::string>> lines;
 
   const int64_t started_ns = now_ns();
   int64_t last_status = started_ns, last_maps = started_ns;
@@ -108,6 +230,22 @@ int main(int argc, char** argv) {
       const hwr::core::Status st = link->publish(hwr::mapio::kChannelMapAck, ack);
       if (!st.ok()) HWR_LOG_WARN("ground", "ack not sent: %s", st.message().c_str());
     });
+    if (input) {
+      lines.clear();
+      const hwr::core::Status st = input->poll(&lines);
+      if (!st.ok()) {
+        std::fprintf(stderr, "hwr-ground: %s; no more operator input\n", st.message().c_str());
+        input.reset();
+      }
+      for (const auto& [number, text] : lines)
+        send_operator_line(console, operator_robot, input_name, number, text);
+    }
+    console.service(t, [&](const hwr_lcm::operator_command_t& cmd) {
+      // Not sent now is sent on the next interval: the command stays pending until acknowledged.
+      const hwr::core::Status st = link->publish(hwr::mapio::kChannelOperatorCommand, cmd);
+      if (!st.ok()) HWR_LOG_WARN("ground", "operator command not sent: %s", st.message().c_str());
+    });
+    print_acknowledged(console);
     if (t - last_maps > 1'000'000'000) {
       // Acknowledge what is stored before the (slow) map writing, so the robot is not kept waiting.
       g.service(t + g_force_ack_ns, [&](const hwr_lcm::chunk_ack_t& ack) {
@@ -138,6 +276,12 @@ int main(int argc, char** argv) {
               static_cast<long long>(g.store().chunks_stored()),
               static_cast<long long>(g.stats().points_stored), static_cast<long long>(g.stats().duplicates),
               static_cast<long long>(g.stats().rejected));
+  int64_t detections = 0;
+  for (const std::string& robot : console.robots())
+    detections += static_cast<int64_t>(console.detections(robot).size());
+  std::printf("operator_detections=%lld\noperator_commands_sent=%lld\noperator_commands_pending=%lld\n",
+              static_cast<long long>(detections), static_cast<long long>(console.stats().commands_sent),
+              static_cast<long long>(console.pending_commands()));
   std::printf("maps under %s/<robot>/<run>/maps (segment_*.ply/.pcd, merged.ply/.pcd)\n", out.c_str());
   return rc;
 }

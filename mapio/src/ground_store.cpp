@@ -22,6 +22,9 @@ namespace fs = std::filesystem;
 namespace {
 
 constexpr char kLockName[] = ".ground_store.lock";
+// What the operator console (operator_console.hpp) keeps beside the runs: not the store's, not noted.
+constexpr char kOperatorLockName[] = ".operator_console.lock";
+constexpr char kOperatorDirName[] = "operator";
 constexpr char kTmpSuffix[] = ".tmp";  // core::write_file_atomic's temp name is PATH + ".tmp"
 constexpr char kCorruptSuffix[] = ".corrupt";
 constexpr size_t kMaxRobotIdChars = 64;
@@ -287,7 +290,7 @@ core::Status GroundStore::State::scan() {
   HWR_RETURN_IF_ERROR(list_dir(out_dir, &robots));
   for (const auto& robot : robots) {
     const std::string robot_id = robot.path().filename().string();
-    if (robot_id == kLockName) continue;
+    if (robot_id == kLockName || robot_id == kOperatorLockName) continue;
     if (!is_dir(robot) || !validate_robot_id(robot_id).ok()) {
       note(robot.path().string() + ": not a robot folder, ignored");
       continue;
@@ -295,6 +298,7 @@ core::Status GroundStore::State::scan() {
     std::vector<fs::directory_entry> run_dirs;
     HWR_RETURN_IF_ERROR(list_dir(robot.path().string(), &run_dirs));
     for (const auto& run : run_dirs) {
+      if (run.path().filename() == kOperatorDirName && is_dir(run)) continue;
       int64_t run_id = 0;
       if (!is_dir(run) || !parse_run_dir(run.path().filename().string(), &run_id)) {
         note(run.path().string() + ": not a run folder, ignored");

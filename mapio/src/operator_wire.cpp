@@ -1,6 +1,7 @@
 #include "hwr/mapio/operator_wire.hpp"
 
 #include <cmath>
+#include <cstdio>
 #include <string>
 
 #include "lcm_reader.hpp"
@@ -66,7 +67,15 @@ core::Status check_box_finite(const Msg& m, const std::string& where) {
 }
 
 std::string sizes_text(const double s[3]) {
-  return std::to_string(s[0]) + " " + std::to_string(s[1]) + " " + std::to_string(s[2]);
+  char buf[96];
+  std::snprintf(buf, sizeof buf, "%g %g %g", s[0], s[1], s[2]);
+  return buf;
+}
+
+std::string px_text(const float b[4]) {
+  char buf[96];
+  std::snprintf(buf, sizeof buf, "%g %g %g %g", b[0], b[1], b[2], b[3]);
+  return buf;
 }
 
 }  // namespace
@@ -149,8 +158,7 @@ core::Status verify_detection(const hwr_lcm::detection_t& d, const OperatorWireL
     return core::OutOfRange(where + ": confidence " + std::to_string(d.confidence) + " outside [0, 1]");
   }
   if (d.box_px[2] < 0 || d.box_px[3] < 0) {
-    return core::OutOfRange(where + ": box_px width/height " + std::to_string(d.box_px[2]) + " / " +
-                            std::to_string(d.box_px[3]) + " must be >= 0");
+    return core::OutOfRange(where + ": box_px " + px_text(d.box_px) + ": width and height must be >= 0");
   }
   if (d.box_size_m[0] < 0 || d.box_size_m[1] < 0 || d.box_size_m[2] < 0) {
     return core::OutOfRange(where + ": box_size_m " + sizes_text(d.box_size_m) + " must be >= 0");
@@ -178,8 +186,7 @@ core::Status verify_operator_command(const hwr_lcm::operator_command_t& c, const
     case OperatorCommandKind::kAdd: {
       if (c.box_px[0] < 0 || c.box_px[1] < 0 || !(c.box_px[2] > 0) || !(c.box_px[3] > 0)) {
         return core::OutOfRange(where + ": add needs box_px x, y >= 0 and width, height > 0, got " +
-                                std::to_string(c.box_px[0]) + " " + std::to_string(c.box_px[1]) + " " +
-                                std::to_string(c.box_px[2]) + " " + std::to_string(c.box_px[3]));
+                                px_text(c.box_px));
       }
       const double* s = c.box_size_m;
       const bool no_world_box = s[0] == 0 && s[1] == 0 && s[2] == 0;

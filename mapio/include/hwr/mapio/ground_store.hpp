@@ -9,7 +9,9 @@
 //   OUT_DIR/<robot_id>/<run_id>/seg_<SSSSSS>_v<V>/     one segment version (id zero-padded to 6)
 //       chunk_<IIIIII>.drc    the Draco payload alone (Debian's draco_decoder reads it as is)
 //       chunk_<IIIIII>.lcm    the whole hwr_lcm::map_chunk_t, LCM-encoded (with its fingerprint)
-// robot_id matches [A-Za-z0-9_-]{1,64}; run_id is its decimal value (>= 0).
+// robot_id matches [A-Za-z0-9_-]{1,64}; run_id is its decimal value (>= 0). OUT_DIR/<robot_id>/operator/
+// and OUT_DIR/.operator_console.lock belong to the operator console (operator_console.hpp): the store
+// leaves them alone.
 //
 // Atomicity: each file is written as FILE.tmp, fsync'ed and renamed (core::write_file_atomic), the
 // .drc first, the .lcm last, then the folder is fsync'ed. A chunk counts as stored only when its .lcm exists,
