@@ -935,17 +935,19 @@ int run(const Args& args) {
     if (args.regions != "geometry") {
       const size_t colon = args.regions.find(':');
       choice.backend = args.regions.compare(0, colon, "onnx") == 0 ? hwr::detect::DetectorBackend::kOnnx
-                                                                    : hwr::detect::DetectorBackend::kTensorRt;
+                                                                   : hwr::detect::DetectorBackend::kTensorRt;
       choice.model.model_path = args.regions.substr(colon + 1);
     }
     auto made = hwr::detect::make_detector(choice, info.intrinsics);
     if (!made.ok()) {
-      std::fprintf(stderr, "hwr-robot: --regions %s: %s\n", args.regions.c_str(), made.status().message().c_str());
+      std::fprintf(stderr, "hwr-robot: --regions %s: %s\n", args.regions.c_str(),
+                   made.status().message().c_str());
       return 2;
     }
     detector = std::move(made.value());
     if (detector.fell_back()) {
-      std::fprintf(stderr, "hwr-robot: --regions %s: the model is unusable (%s); using the geometric seam detector\n",
+      std::fprintf(stderr,
+                   "hwr-robot: --regions %s: the model is unusable (%s); using the geometric seam detector\n",
                    args.regions.c_str(), detector.fallback_reason.c_str());
     }
     robot.detector = detector.detector.get();

@@ -60,12 +60,14 @@ class OperatorChannel {
   // add: the rectangle drawn on a keyframe lifted to a 3D box (map frame) with that keyframe's depth,
   // when its images are still kept. false when they are not, or too few depth pixels lie inside.
   bool lift_drawn(const estimation::KeyframeStore& keyframes, int64_t keyframe_t_ns, const cv::Rect2f& box_px,
-                  const Eigen::Isometry3d& T_map_world, Eigen::Isometry3d* T_map_box, Eigen::Vector3d* half_size_m);
+                  const Eigen::Isometry3d& T_map_world, Eigen::Isometry3d* T_map_box,
+                  Eigen::Vector3d* half_size_m);
   void publish(int64_t now_ns);
 
   detect::DetectionLedger ledger_;
   hal::PinholeIntrinsics K_;
-  std::optional<detect::BoxLifter> lifter_;  // absent only for invalid intrinsics (then add needs a world box)
+  std::optional<detect::BoxLifter>
+      lifter_;  // absent only for invalid intrinsics (then add needs a world box)
   mapio::MapStreamer* streamer_;
   std::string save_path_;
   OperatorChannelCounters counters_;

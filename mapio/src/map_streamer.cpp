@@ -293,11 +293,16 @@ struct MapStreamer::Impl {
       detections.swap(detections_out);
       acks.swap(acks_out);
     }
+    // Verified before they go out (operator_wire.hpp): the ground station refuses what does not pass.
     int64_t published_detections = 0, published_acks = 0;
     for (const auto& d : detections)
-      if (link.publish(kChannelDetection, d).ok()) ++published_detections;
+      if (encode_detection(d, &wire).ok() &&
+          link.publish_bytes(kChannelDetection, wire.data(), wire.size()).ok())
+        ++published_detections;
     for (const auto& a : acks)
-      if (link.publish(kChannelOperatorAck, a).ok()) ++published_acks;
+      if (encode_command_ack(a, &wire).ok() &&
+          link.publish_bytes(kChannelOperatorAck, wire.data(), wire.size()).ok())
+        ++published_acks;
     std::lock_guard<std::mutex> lock(mu);
     stats.detections_published += published_detections;
     stats.acks_published += published_acks;
