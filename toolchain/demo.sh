@@ -2,7 +2,8 @@
 # Installs what is missing, builds, and runs the pipeline as far as it exists:
 #   simulator (hwr-sim) → robot process (hwr-robot: HAL replay → fixed-rate scheduler → pose
 #   estimation → local maps and the map store → Draco chunks over LCM) → ground station
-#   (hwr-ground: receives, stores, writes PLY/PCD maps) → evaluation (trajectory ATE, plate AE)
+#   (hwr-ground: receives, stores, writes PLY/PCD maps; the operator confirms a welding region over
+#   the link) → evaluation (trajectory ATE, plate AE) → second visit (relocalization, map update)
 # Robot and ground station talk UDP multicast inside a private network namespace (unshare -rn)
 # where the system allows one, else on this host only (ttl=0).
 # Outputs go to out/demo/ (override with HWR_DEMO_OUT=DIR). By default the first 60 s of the lab
@@ -41,16 +42,32 @@ robot_and_ground() {
     ip link set lo up
     ip route add 224.0.0.0/4 dev lo
   fi
+  # The operator: once the first welding region reaches the ground station, confirm it (a line on
+  # hwr-ground's --operator-input; docs/detection.md "Operator intervention").
+  rm -f "$out/operator.fifo"
+  mkfifo "$out/operator.fifo"
   "$bin/hwr-ground/hwr-ground" --out "$out/ground" --link "$url" --status-interval 5 \
-    > "$out/ground-summary.txt" 2> "$out/ground-log.txt" &
+    --operator-input "$out/operator.fifo" > "$out/ground-summary.txt" 2> "$out/ground-log.txt" &
   local ground=$!
-  trap "kill -TERM $ground 2>/dev/null || true" EXIT
+  (
+    for _ in $(seq 600); do
+      if [[ -s "$out/ground/demo-robot/operator/detections.txt" ]]; then
+        echo "confirm 0" > "$out/operator.fifo"
+        exit 0
+      fi
+      sleep 0.5
+    done
+  ) &
+  local operator=$!
+  trap "kill -TERM $ground $operator 2>/dev/null || true" EXIT
   "$bin/hwr-robot/hwr-robot" --source "sim:$out/sim-lab" --quiet --traj-out "$out/trajectory.txt" \
     --timing-out "$out/timing.csv" --map-out "$out/map-store" --cloud-out "$out/map-cloud.bin" \
     --regions geometry --link "$url" --robot-id demo-robot | tee "$out/robot-telemetry.txt"
+  kill -TERM "$operator" 2>/dev/null || true
   kill -TERM "$ground"
   wait "$ground"
   trap - EXIT
+  rm -f "$out/operator.fifo"
   cat "$out/ground-summary.txt"
 }
 export -f robot_and_ground
@@ -79,7 +96,8 @@ echo "== 5/5 second visit: the lab later (a plate moved, a box removed), started
 echo "       relocalizes against the map store of step 2 while it moves, then continues in its frame =="
 rm -rf "$out/revisit-store"
 "$bin/hwr-robot/hwr-robot" --source sim:scenarios/lab_revisit_short.yaml --quiet --prior-map "$out/map-store" \
-  --map-out "$out/revisit-store" --traj-out "$out/revisit-trajectory.txt" | tee "$out/revisit-telemetry.txt"
+  --map-out "$out/revisit-store" --traj-out "$out/revisit-trajectory.txt" --regions geometry \
+  | tee "$out/revisit-telemetry.txt"
 
 cat <<MSG
 
@@ -100,7 +118,8 @@ demo outputs:
       the map store: closed local maps (segments/seg_NNNNNN: segment.yaml, keyframes.bin,
       cloud.bin, fine.bin) with their keyframes, ORB + NDT junctions, and the welding regions the
       geometric seam detector found (fillet joints; --regions geometry) with their 2 mm fine clouds
-      (docs/reconstruction.md, docs/detection.md)
+      (docs/reconstruction.md, docs/detection.md); detections.yaml: the robot's welding-region
+      list with the operator's commands and their outcomes
   $out/map-cloud.bin
       every segment's points in the world frame (16-byte CloudPoint records)
   $out/ground/demo-robot/<run>/maps/
@@ -108,15 +127,20 @@ demo outputs:
       merged.ply/.pcd (world frame; PCL, Open3D, CloudCompare read them); the chunks as received
       (seg_*/chunk_*.lcm) and their Draco payloads (chunk_*.drc, draco_decoder reads them)
       (docs/mapio.md); $out/ground-summary.txt and ground-log.txt: its report and status lines
+  $out/ground/demo-robot/operator/
+      the operator's view: detections.txt (the robot's welding regions as they arrived),
+      journal.log (the "confirm 0" the demo sent and the robot's acknowledgement), the messages
+      as received (detections/, commands/)
   $out/ae.txt, $out/ae-coarse.txt
       welding-plate reconstruction error (AE) of that map: on the welding regions' fine clouds, and
       on the coarse map (docs/reconstruction.md)
   $out/revisit-telemetry.txt, $out/revisit-trajectory.txt, $out/revisit-store/
       the second visit: where it relocalized (T_prior_world, attempts, time), its trajectory and
       segments in the first run's frame, relocalization.yaml, and updated first-run segments
-      (docs/relocalization.md, docs/prior_map_update.md)
+      (docs/relocalization.md, docs/prior_map_update.md); its detections.yaml continues the first
+      visit's list (the operator's confirmation kept)
 
-welding-region detection (detect/) finds fillet joints on the keyframes' depth; butt joints, the
-learned detector and the operator's corrections come next (docs/detection.md). With --regions truth
-instead, the simulator's joints are the detections (every plate in step 4).
+welding-region detection (detect/) finds fillet joints on the keyframes' depth; butt joints come
+next; a learned detector runs with --regions onnx:MODEL (no trained model ships) (docs/detection.md).
+With --regions truth instead, the simulator's joints are the detections (every plate in step 4).
 MSG

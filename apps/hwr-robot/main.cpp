@@ -364,6 +364,7 @@ void detect_regions(Robot* r) {
       if (r->operator_channel != nullptr &&
           r->operator_channel->suppress(kf->T_world_cam * d.T_cam_box, d.half_size_m))
         continue;  // on a region the operator rejected
+      if (r->operator_channel != nullptr) r->operator_channel->add_detection(d);
       r->mapper->add_weld_region(hwr::recon::weld_region_from_detection(d), kf->T_world_cam);
       ++r->region_detections;
     }

@@ -58,6 +58,10 @@ bool OperatorChannel::suppress(const Eigen::Isometry3d& T_world_box, const Eigen
   return true;
 }
 
+void OperatorChannel::add_detection(const detect::Detection& detection) {
+  fusion_changed_ = fusion_.add(detection) || fusion_changed_;
+}
+
 core::Status OperatorChannel::save() {
   if (save_path_.empty()) return core::Status::Ok();
   const core::Status st = ledger_.save(save_path_);
@@ -107,6 +111,10 @@ void OperatorChannel::restore_placed(recon::FineRegionMap* fine, const std::vect
 
 void OperatorChannel::sync_regions(const recon::FineRegionMap& fine, const Eigen::Isometry3d& T_map_world,
                                    int64_t now_ns) {
+  if (fusion_changed_) {
+    fused_ = fusion_.fused();  // only when a detection came in: keyframe-paced
+    fusion_changed_ = false;
+  }
   for (int i = 0; i < fine.active_regions(); ++i) {
     const recon::WeldRegion& r = fine.region(i);
     if (r.source == recon::WeldRegionSource::kSimTruth) continue;  // not a detection (--regions truth)
@@ -118,6 +126,17 @@ void OperatorChannel::sync_regions(const recon::FineRegionMap& fine, const Eigen
     if (r.keyframe_id >= 0) seen.box_px = box_rect_px(r.T_cam_region, r.half_size_m, K_);
     seen.T_world_box = fine.T_world_region(i);
     seen.half_size_m = r.half_size_m;
+    // The region's seam: the fused seam of its kind seen most often whose midpoint lies in the box.
+    const Eigen::Isometry3d T_region_world = seen.T_world_box.inverse(Eigen::Isometry);
+    int most = 0;
+    for (const detect::FusedSeam& f : fused_) {
+      if (f.seam.kind != seen.kind || f.detections <= most ||
+          !recon::inside_region_box(T_region_world * (0.5 * (f.seam.a + f.seam.b)), r.half_size_m))
+        continue;
+      most = f.detections;
+      seen.has_seam = true;
+      seen.seam_world = {f.seam.a, f.seam.b};
+    }
     ledger_.observe_region(r.id, seen, T_map_world, now_ns);
   }
 }
@@ -226,8 +245,11 @@ void OperatorChannel::publish(int64_t now_ns) {
     }
     d.box_q_world_box[0] = q.w(), d.box_q_world_box[1] = q.x();
     d.box_q_world_box[2] = q.y(), d.box_q_world_box[3] = q.z();
-    d.num_seam_points = 0;  // the map keeps boxes, not seam lines
-    d.seam_world_m.clear();
+    d.num_seam_points = e->has_seam ? 2 : 0;
+    d.seam_world_m.assign(static_cast<size_t>(d.num_seam_points), std::vector<double>(3, 0.0));
+    for (int k = 0; k < d.num_seam_points; ++k)
+      for (int c = 0; c < 3; ++c)
+        d.seam_world_m[static_cast<size_t>(k)][c] = e->seam_map[static_cast<size_t>(k)][c];
     streamer_->post_detection(d);
     ++counters_.published;
   }

@@ -15,6 +15,7 @@
 
 #include "hwr/detect/box_lift.hpp"
 #include "hwr/detect/detection_ledger.hpp"
+#include "hwr/detect/seam_fusion.hpp"
 #include "hwr/estimation/keyframe_store.hpp"
 #include "hwr/hal/pinhole_camera.hpp"
 #include "hwr/mapio/map_streamer.hpp"
@@ -39,6 +40,9 @@ class OperatorChannel {
 
   // Whether a detection with this box (run's world frame) lies on a rejected region (counted).
   bool suppress(const Eigen::Isometry3d& T_world_box, const Eigen::Vector3d& half_size_m);
+  // A detection the map took (world members filled): its seam joins the fusion (seam_fusion.hpp) that
+  // gives each region of the list its seam line.
+  void add_detection(const detect::Detection& detection);
 
   // Mapping task, after the new keyframes' detections went into the fine map. T_map_world: the frame
   // the robot publishes in; map_frame_known: whether this run knows it (false before relocalizing
@@ -75,6 +79,9 @@ class OperatorChannel {
   hwr_lcm::detection_t detection_;
   std::vector<int64_t> ids_;
   int64_t last_full_publish_ns_ = -1;
+  detect::SeamFusion fusion_;
+  std::vector<detect::FusedSeam> fused_;  // fusion_.fused() after the last new detection
+  bool fusion_changed_ = false;
 };
 
 }  // namespace hwr::robot

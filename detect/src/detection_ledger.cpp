@@ -143,22 +143,29 @@ int64_t DetectionLedger::observe_region(int64_t region_id, const LedgerEntry& se
     e->region_id = region_id;
     e->state = DetectionState::kProposed;
     e->operator_box = false;
-  } else if (!e->operator_box) {
-    // The box moved by less than a millimetre and the same keyframe: nothing to publish.
-    const bool same = (e->T_world_box.translation() - seen.T_world_box.translation()).norm() < 1e-3 &&
-                      (e->half_size_m - seen.half_size_m).cwiseAbs().maxCoeff() < 1e-3 &&
-                      e->keyframe_t_ns == seen.keyframe_t_ns;
-    if (same) return e->id;
-    e->confidence = seen.confidence;
-    e->keyframe_t_ns = seen.keyframe_t_ns;
-    e->box_px = seen.box_px;
-    e->half_size_m = seen.half_size_m;
-    e->T_world_box = seen.T_world_box;
   } else {
-    return e->id;
+    // Moved by less than a millimetre, the same keyframe, the same seam: nothing to publish.
+    const bool same_box =
+        e->operator_box || ((e->T_world_box.translation() - seen.T_world_box.translation()).norm() < 1e-3 &&
+                            (e->half_size_m - seen.half_size_m).cwiseAbs().maxCoeff() < 1e-3 &&
+                            e->keyframe_t_ns == seen.keyframe_t_ns);
+    const bool same_seam = e->has_seam == seen.has_seam &&
+                           (!seen.has_seam || ((e->seam_world[0] - seen.seam_world[0]).norm() < 1e-3 &&
+                                               (e->seam_world[1] - seen.seam_world[1]).norm() < 1e-3));
+    if (same_box && same_seam) return e->id;
+    if (!e->operator_box) {
+      e->confidence = seen.confidence;
+      e->keyframe_t_ns = seen.keyframe_t_ns;
+      e->box_px = seen.box_px;
+      e->half_size_m = seen.half_size_m;
+      e->T_world_box = seen.T_world_box;
+    }
+    e->has_seam = seen.has_seam;
+    e->seam_world = seen.seam_world;
   }
   e->placed = true;
   e->T_map_box = T_map_world * e->T_world_box;
+  for (int k = 0; k < 2; ++k) e->seam_map[k] = T_map_world * e->seam_world[k];
   e->updated_t_ns = now_ns;
   changed(e->id);
   return e->id;
@@ -181,6 +188,7 @@ void DetectionLedger::place(const Eigen::Isometry3d& T_map_world, std::vector<in
   for (LedgerEntry& e : entries_) {
     if (!e.placed) {
       e.T_world_box = T_world_map * e.T_map_box;
+      for (int k = 0; k < 2; ++k) e.seam_world[k] = T_world_map * e.seam_map[k];
       e.placed = true;
       if (newly_placed != nullptr) newly_placed->push_back(e.id);
       continue;
@@ -190,6 +198,7 @@ void DetectionLedger::place(const Eigen::Isometry3d& T_map_world, std::vector<in
         (T_map_box.linear() - e.T_map_box.linear()).cwiseAbs().maxCoeff() < 1e-4)
       continue;
     e.T_map_box = T_map_box;
+    for (int k = 0; k < 2; ++k) e.seam_map[k] = T_map_world * e.seam_world[k];
     e.updated_t_ns = now_ns;
     changed(e.id);
   }
@@ -300,6 +309,12 @@ std::string DetectionLedger::to_yaml() const {
                   t.x(), t.y(), t.z(), q.w(), q.x(), q.y(), q.z(), e.half_size_m.x(), e.half_size_m.y(),
                   e.half_size_m.z(), e.operator_box ? "true" : "false", e.updated_t_ns);
     y += buf;
+    if (e.has_seam) {
+      std::snprintf(buf, sizeof(buf), "    seam_map_m: [%.17g, %.17g, %.17g, %.17g, %.17g, %.17g]\n",
+                    e.seam_map[0].x(), e.seam_map[0].y(), e.seam_map[0].z(), e.seam_map[1].x(),
+                    e.seam_map[1].y(), e.seam_map[1].z());
+      y += buf;
+    }
   }
   y += commands_.empty() ? "commands: []\n" : "commands:\n";
   for (const CommandOutcome& o : commands_) {
@@ -344,6 +359,19 @@ core::Expected<DetectionLedger> DetectionLedger::load(const std::string& path, c
         .require("box_px", &box_px);
     m.require("t_map_box_m", &t).require("q_map_box", &q).require("half_size_m", &e.half_size_m);
     m.require("operator_box", &e.operator_box).require("updated_t_ns", &e.updated_t_ns);
+    if (m.has("seam_map_m")) {
+      std::vector<double> seam;
+      m.get("seam_map_m", &seam);
+      if (seam.size() != 6) {
+        m.record_error("seam_map_m", "expected 6 numbers (the seam's two ends)");
+      } else {
+        e.has_seam = true;
+        e.seam_map[0] = Eigen::Vector3d(seam[0], seam[1], seam[2]);
+        e.seam_map[1] = Eigen::Vector3d(seam[3], seam[4], seam[5]);
+        if (!(e.seam_map[0].allFinite() && e.seam_map[1].allFinite()))
+          m.record_error("seam_map_m", "not finite");
+      }
+    }
     if (!enum_from_name(source, kSources, detection_source_name, &e.source))
       m.record_error("source", "expected model, geometry or operator, got '" + source + "'");
     if (!enum_from_name(kind, kKinds, seam_kind_name, &e.kind))

@@ -18,6 +18,8 @@
 #include <string>
 #include <thread>
 
+#include <Eigen/Core>
+
 #include "cli_run.hpp"
 #include "hwr/detect/detection_ledger.hpp"
 #include "hwr/mapio/lcm_link.hpp"
@@ -193,6 +195,20 @@ TEST(HwrRobotOperator,
     // Keep the link serviced until the robot has finished its run.
     while (!exited(robot, &code)) g.pump(200);
     EXPECT_EQ(code, 0) << read_text(dir + "/robot1.txt");
+    g.pump(300);
+    // A region seen from several keyframes carries its fused seam: two ends, inside its box.
+    bool seam = false;
+    for (const auto& d : g.console->detections(kRobotId)) {
+      if (d.num_seam_points != 2) continue;
+      seam = true;
+      Eigen::Vector3d mid = Eigen::Vector3d::Zero(), centre, size;
+      for (int k = 0; k < 2; ++k)
+        mid += 0.5 * Eigen::Vector3d(d.seam_world_m[k][0], d.seam_world_m[k][1], d.seam_world_m[k][2]);
+      centre << d.box_center_world_m[0], d.box_center_world_m[1], d.box_center_world_m[2];
+      size << d.box_size_m[0], d.box_size_m[1], d.box_size_m[2];
+      EXPECT_LE((mid - centre).norm(), 0.5 * size.norm()) << "detection " << d.detection_id;
+    }
+    EXPECT_TRUE(seam);
   }  // the ground end stops
 
   // The robot's list as it left it, in its map store.

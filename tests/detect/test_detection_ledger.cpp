@@ -139,7 +139,11 @@ TEST(DetectionLedger, GivenASavedLedgerThenLoadGivesItBackUnplacedUntilTheMapFra
   DetectionLedger ledger;
   const Eigen::Isometry3d T_map_world = at(5, 0, 0);
   const int64_t a = ledger.observe_region(0, seen_at(1, 2), T_map_world, 100);
-  const int64_t b = ledger.observe_region(1, seen_at(3, 2), T_map_world, 100);
+  LedgerEntry with_seam = seen_at(3, 2);
+  with_seam.has_seam = true;
+  with_seam.seam_world = {Eigen::Vector3d(2.8, 2, 0.85), Eigen::Vector3d(3.2, 2, 0.85)};
+  const int64_t b = ledger.observe_region(1, with_seam, T_map_world, 100);
+  EXPECT_NEAR(ledger.find(b)->seam_map[1].x(), 8.2, 1e-12);  // map frame
   ASSERT_TRUE(ledger.apply(command(11, OperatorCommandKind::kReject, a), T_map_world, true, 200).accepted);
   CommandOutcome refused =
       ledger.apply(command(12, OperatorCommandKind::kConfirm, 42), T_map_world, true, 300);
@@ -154,6 +158,9 @@ TEST(DetectionLedger, GivenASavedLedgerThenLoadGivesItBackUnplacedUntilTheMapFra
   EXPECT_EQ(back->find(a)->state, DetectionState::kRejected);
   EXPECT_EQ(back->find(b)->state, DetectionState::kProposed);
   EXPECT_NEAR(back->find(b)->T_map_box.translation().x(), 8.0, 1e-12);
+  EXPECT_FALSE(back->find(a)->has_seam);
+  ASSERT_TRUE(back->find(b)->has_seam);
+  EXPECT_TRUE(back->find(b)->seam_map[0].isApprox(Eigen::Vector3d(7.8, 2, 0.85), 1e-15));
   EXPECT_EQ(back->find(a)->region_id, -1);
   ASSERT_EQ(back->commands().size(), 2u);
   EXPECT_EQ(back->commands()[1].reason, "no detection 42");
@@ -167,6 +174,8 @@ TEST(DetectionLedger, GivenASavedLedgerThenLoadGivesItBackUnplacedUntilTheMapFra
   std::vector<int64_t> placed;
   back->place(T_map_world, &placed, 500);
   EXPECT_EQ(placed.size(), 2u);
+  EXPECT_TRUE(
+      back->find(b)->seam_world[1].isApprox(Eigen::Vector3d(3.2, 2, 0.85), 1e-12));  // this run's world
   EXPECT_TRUE(back->suppressed(at(1, 2, 0.9), Eigen::Vector3d(0.1, 0.1, 0.1)));
   // New entries continue the numbering.
   EXPECT_EQ(back->observe_region(0, seen_at(7, 7), T_map_world, 600), ledger.next_id());

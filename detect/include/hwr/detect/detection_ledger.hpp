@@ -58,11 +58,16 @@ struct LedgerEntry {
   Eigen::Isometry3d T_map_box = Eigen::Isometry3d::Identity();
   Eigen::Vector3d half_size_m = Eigen::Vector3d::Zero();
   bool operator_box = false;  // moved, resized or drawn by the operator: detections no longer change it
-  int64_t updated_t_ns = 0;   // last change (robot clock)
-  // Runtime, not persisted: the box in this run's world frame once placed; this run's fine-map
-  // region (-1: none, e.g. rejected or not placed yet).
+  // The seam inside the box, fused over the keyframes that saw it (seam_fusion.hpp), map frame; none
+  // for a region drawn by the operator or seen only once.
+  bool has_seam = false;
+  std::array<Eigen::Vector3d, 2> seam_map{Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero()};
+  int64_t updated_t_ns = 0;  // last change (robot clock)
+  // Runtime, not persisted: the box and seam in this run's world frame once placed; this run's
+  // fine-map region (-1: none, e.g. rejected or not placed yet).
   bool placed = false;
   Eigen::Isometry3d T_world_box = Eigen::Isometry3d::Identity();
+  std::array<Eigen::Vector3d, 2> seam_world{Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero()};
   int64_t region_id = -1;
 };
 
@@ -101,9 +106,9 @@ class DetectionLedger {
   core::Status save(const std::string& path) const;  // atomic (core::write_file_atomic)
   std::string to_yaml() const;
 
-  // A detector's region of this run (id `region_id` in the fine map), with its current box in the
-  // run's world and the map frame: creates its entry or updates it (unless the operator's box).
-  // Returns the entry's id.
+  // A detector's region of this run (id `region_id` in the fine map), with its current box (and seam,
+  // when seen.has_seam) in the run's world frame (seen.T_world_box, seen.seam_world): creates its
+  // entry or updates it (the box not when it is the operator's). Returns the entry's id.
   int64_t observe_region(int64_t region_id, const LedgerEntry& seen, const Eigen::Isometry3d& T_map_world,
                          int64_t now_ns);
   // Whether a detection with this box (run's world frame) falls on a rejected region: its centre in
