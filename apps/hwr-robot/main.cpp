@@ -1133,16 +1133,26 @@ int run(const Args& args) {
     }
     if (operator_channel) {
       const auto& o = operator_channel->counters();
-      size_t rejected = 0, confirmed = 0;
+      size_t rejected = 0, confirmed = 0, unplaced = 0;
       for (const auto& entry : operator_channel->ledger().entries()) {
         rejected += entry.state == hwr::detect::DetectionState::kRejected;
         confirmed += entry.state == hwr::detect::DetectionState::kConfirmed;
+        unplaced += !entry.placed;
+      }
+      if (unplaced > 0) {
+        // Not relocalized: the list holds the prior map's entries in the prior's frame and this run's in
+        // its own (as the segments of such a run are).
+        std::printf(
+            "operator: warning: %zu entries of the prior map's list were never placed in this run "
+            "(not relocalized): they keep the prior map's frame, this run's entries its own\n",
+            unplaced);
       }
       std::printf("operator: detections=%zu confirmed=%zu rejected=%zu commands applied=%" PRIu64
                   " refused=%" PRIu64 " repeated=%" PRIu64 " suppressed_detections=%" PRIu64
-                  " restored_from_prior=%" PRIu64 " -> %s\n",
+                  " restored_from_prior=%" PRIu64 " (duplicates merged %" PRIu64 ") -> %s\n",
                   operator_channel->ledger().entries().size(), confirmed, rejected, o.commands_applied,
                   o.commands_refused, o.commands_repeated, o.detections_suppressed, o.regions_restored,
+                  o.duplicates_merged,
                   operator_channel->save_path().empty() ? "(no --map-out: not kept)"
                                                         : operator_channel->save_path().c_str());
     }

@@ -74,36 +74,94 @@ void OperatorChannel::step(recon::FineRegionMap* fine, const estimation::Keyfram
   if (map_frame_known) {
     ids_.clear();
     ledger_.place(T_map_world, &ids_, now_ns);
-    restore_placed(fine, ids_);
+    restore_placed(fine, ids_, now_ns, /*merge_duplicates=*/true);
   }
   sync_regions(*fine, T_map_world, now_ns);
   if (streamer_ != nullptr) {
-    while (streamer_->take_operator_command(&command_))
-      apply_command(command_, fine, keyframes, T_map_world, map_frame_known, now_ns);
+    // Every command waiting is applied, the list saved once, then all are acknowledged: an
+    // acknowledged command is on disk (it survives a restart of the robot). When the save fails
+    // nothing is acknowledged; the ground station resends, and a repeated command saves again.
+    acks_.clear();
+    bool changed = false;
+    while (streamer_->take_operator_command(&command_)) {
+      bool repeated = false;
+      const detect::CommandOutcome o =
+          apply_command(command_, fine, keyframes, T_map_world, now_ns, &repeated);
+      changed = changed || !repeated;
+      acks_.push_back(o);
+    }
+    if (!acks_.empty()) {
+      if (changed || unsaved_) {
+        const core::Status st = save();
+        unsaved_ = !st.ok();
+        if (unsaved_) {
+          HWR_LOG_ERROR("robot",
+                        "operator: the detection list was not saved (%s); %zu command(s) not acknowledged",
+                        st.message().c_str(), acks_.size());
+        }
+      }
+      if (!unsaved_) {
+        for (const detect::CommandOutcome& o : acks_) {
+          hwr_lcm::command_ack_t ack;
+          ack.t_ns = now_ns;
+          ack.command_id = o.command_id;
+          ack.accepted = o.accepted ? 1 : 0;
+          ack.reason = o.reason;
+          ack.detection_id = o.detection_id;
+          streamer_->post_command_ack(ack);
+        }
+      }
+    }
   }
   publish(now_ns);
 }
 
-// The prior map's entries, now placed in this run's world, become regions again (not the rejected
-// ones: those only suppress detections). An operator's box stays fixed.
-void OperatorChannel::restore_placed(recon::FineRegionMap* fine, const std::vector<int64_t>& ids) {
+// Entries placed in this run's world become regions of the fine map again (not the rejected ones:
+// those only suppress detections), with the box they have: fixed (detections merge into it without
+// re-anchoring or growing it). A region this run found before it knew the map frame and that
+// overlaps the entry (either box holds the other's centre) is the same weld: when the operator has
+// not touched it, the entry takes its region, and its own entry leaves the list (published one last
+// time as rejected, so the ground station's copy says it is not to be welded). Only for the prior
+// map's entries (merge_duplicates); a region the operator adds, or brings back, is a region of its own.
+void OperatorChannel::restore_placed(recon::FineRegionMap* fine, const std::vector<int64_t>& ids,
+                                     int64_t now_ns, bool merge_duplicates) {
   for (const int64_t id : ids) {
     const detect::LedgerEntry* e = ledger_.find(id);
     if (e == nullptr || e->state == detect::DetectionState::kRejected || e->region_id >= 0) continue;
-    recon::WeldRegion r;
-    r.source = static_cast<recon::WeldRegionSource>(e->source);
-    r.confidence = e->confidence;
-    recon::set_weld_region_label(&r, detect::seam_kind_name(e->kind));
-    r.t_ns = e->keyframe_t_ns;
-    r.half_size_m = e->half_size_m;
-    int64_t region = -1;
-    if (e->operator_box) {
-      region = fine->add_fixed(r, e->T_world_box);
-    } else {
-      // Anchored on no keyframe (keyframe_id -1: settle() leaves it), its box at the identity "camera".
-      region = fine->add(r, e->T_world_box);
+    const Eigen::Isometry3d T_world_box = e->T_world_box;
+    const Eigen::Vector3d half = e->half_size_m;
+    int64_t duplicate = -1, region = -1;
+    for (const detect::LedgerEntry& other : ledger_.entries()) {
+      if (!merge_duplicates) break;
+      if (other.id == id || other.region_id < 0 || other.operator_box ||
+          other.state != detect::DetectionState::kProposed)
+        continue;
+      const bool overlap =
+          recon::inside_region_box(other.T_world_box.inverse(Eigen::Isometry) * T_world_box.translation(),
+                                   other.half_size_m) ||
+          recon::inside_region_box(T_world_box.inverse(Eigen::Isometry) * other.T_world_box.translation(),
+                                   half);
+      if (!overlap) continue;
+      duplicate = other.id;
+      region = other.region_id;
+      break;
     }
-    if (region < 0) continue;
+    if (duplicate >= 0) {
+      detect::LedgerEntry dropped;
+      if (ledger_.drop(duplicate, now_ns, &dropped)) post(dropped);
+      fine->set_fixed_box(static_cast<uint32_t>(region), T_world_box, half);
+      ++counters_.duplicates_merged;
+    } else {
+      const detect::LedgerEntry& entry = *ledger_.find(id);
+      recon::WeldRegion r;
+      r.source = static_cast<recon::WeldRegionSource>(entry.source);
+      r.confidence = entry.confidence;
+      recon::set_weld_region_label(&r, detect::seam_kind_name(entry.kind));
+      r.t_ns = entry.keyframe_t_ns;
+      r.half_size_m = half;
+      region = fine->add_fixed(r, T_world_box);
+      if (region < 0) continue;  // the table is full (counted by the fine map)
+    }
     ledger_.link_region(id, region);
     ++counters_.regions_restored;
   }
@@ -160,10 +218,11 @@ bool OperatorChannel::lift_drawn(const estimation::KeyframeStore& keyframes, int
   return false;
 }
 
-void OperatorChannel::apply_command(const hwr_lcm::operator_command_t& msg, recon::FineRegionMap* fine,
-                                    const estimation::KeyframeStore& keyframes,
-                                    const Eigen::Isometry3d& T_map_world, bool map_frame_known,
-                                    int64_t now_ns) {
+detect::CommandOutcome OperatorChannel::apply_command(const hwr_lcm::operator_command_t& msg,
+                                                      recon::FineRegionMap* fine,
+                                                      const estimation::KeyframeStore& keyframes,
+                                                      const Eigen::Isometry3d& T_map_world, int64_t now_ns,
+                                                      bool* repeated) {
   detect::OperatorCommand c;
   c.command_id = msg.command_id;
   c.kind = static_cast<detect::OperatorCommandKind>(msg.kind);
@@ -176,22 +235,25 @@ void OperatorChannel::apply_command(const hwr_lcm::operator_command_t& msg, reco
   // keyframe is no longer kept and that has no world box is refused by the ledger).
   if (c.kind == detect::OperatorCommandKind::kAdd && !(c.half_size_m.minCoeff() > 0))
     lift_drawn(keyframes, c.keyframe_t_ns, c.box_px, T_map_world, &c.T_map_box, &c.half_size_m);
-  bool repeated = false;
-  const detect::CommandOutcome o = ledger_.apply(c, T_map_world, map_frame_known, now_ns, &repeated);
-  if (repeated) {
+  const detect::CommandOutcome o = ledger_.apply(c, T_map_world, now_ns, repeated);
+  if (*repeated) {
     ++counters_.commands_repeated;
   } else if (o.accepted) {
     ++counters_.commands_applied;
-    // Mirror it on the map's regions.
+    // Mirror it on the map's regions: a rejected region leaves the fine map; a moved one keeps the
+    // operator's box; an added one, or a confirmed / moved entry without a region (rejected before),
+    // becomes one.
     const detect::LedgerEntry* e = ledger_.find(o.detection_id);
     if (e != nullptr && e->placed) {
-      if (c.kind == detect::OperatorCommandKind::kReject && e->region_id >= 0) {
-        fine->remove(static_cast<uint32_t>(e->region_id));
+      if (c.kind == detect::OperatorCommandKind::kReject) {
+        if (e->region_id >= 0) fine->remove(static_cast<uint32_t>(e->region_id));
         ledger_.link_region(e->id, -1);
-      } else if (c.kind == detect::OperatorCommandKind::kMove && e->region_id >= 0) {
-        fine->set_fixed_box(static_cast<uint32_t>(e->region_id), e->T_world_box, e->half_size_m);
-      } else if (c.kind == detect::OperatorCommandKind::kAdd) {
-        restore_placed(fine, {e->id});
+      } else if (e->region_id >= 0) {
+        if (c.kind == detect::OperatorCommandKind::kMove)
+          fine->set_fixed_box(static_cast<uint32_t>(e->region_id), e->T_world_box, e->half_size_m);
+      } else {
+        ids_.assign(1, e->id);
+        restore_placed(fine, ids_, now_ns, /*merge_duplicates=*/false);
       }
     }
     HWR_LOG_INFO("robot", "operator command %lld (%s): applied to detection %lld",
@@ -202,19 +264,38 @@ void OperatorChannel::apply_command(const hwr_lcm::operator_command_t& msg, reco
     HWR_LOG_WARN("robot", "operator command %lld (%s): refused: %s", static_cast<long long>(o.command_id),
                  detect::operator_command_name(o.kind), o.reason.c_str());
   }
-  // Durable before it is acknowledged: an acknowledged command survives a restart of the robot.
-  if (!repeated) {
-    const core::Status st = save();
-    if (!st.ok())
-      HWR_LOG_ERROR("robot", "operator: the detection list was not saved: %s", st.message().c_str());
+  return o;
+}
+
+void OperatorChannel::post(const detect::LedgerEntry& e) {
+  if (streamer_ == nullptr) return;
+  hwr_lcm::detection_t& d = detection_;
+  d.t_ns = e.updated_t_ns;
+  d.detection_id = e.id;
+  d.segment_id = -1;
+  d.keyframe_t_ns = e.keyframe_t_ns;
+  d.source = static_cast<int8_t>(e.source);
+  d.state = static_cast<int8_t>(e.state);
+  d.confidence = std::clamp(e.confidence, 0.0f, 1.0f);
+  d.box_px[0] = e.box_px.x, d.box_px[1] = e.box_px.y;
+  d.box_px[2] = e.box_px.width, d.box_px[3] = e.box_px.height;
+  const Eigen::Vector3d t = e.T_map_box.translation();
+  const Eigen::Quaterniond q(e.T_map_box.linear());
+  for (int k = 0; k < 3; ++k) {
+    d.box_center_world_m[k] = t[k];
+    d.box_size_m[k] = 2.0 * e.half_size_m[k];
   }
-  hwr_lcm::command_ack_t ack;
-  ack.t_ns = now_ns;
-  ack.command_id = o.command_id;
-  ack.accepted = o.accepted ? 1 : 0;
-  ack.reason = o.reason;
-  ack.detection_id = o.detection_id;
-  if (streamer_ != nullptr) streamer_->post_command_ack(ack);
+  d.box_q_world_box[0] = q.w(), d.box_q_world_box[1] = q.x();
+  d.box_q_world_box[2] = q.y(), d.box_q_world_box[3] = q.z();
+  // Two rows of three, allocated once (seam_rows_); the message's vector is swapped in and back.
+  d.num_seam_points = e.has_seam ? 2 : 0;
+  d.seam_world_m.swap(e.has_seam ? seam_rows_ : no_seam_rows_);
+  for (int k = 0; k < d.num_seam_points; ++k)
+    for (int c = 0; c < 3; ++c)
+      d.seam_world_m[static_cast<size_t>(k)][c] = e.seam_map[static_cast<size_t>(k)][c];
+  streamer_->post_detection(d);
+  d.seam_world_m.swap(e.has_seam ? seam_rows_ : no_seam_rows_);
+  ++counters_.published;
 }
 
 void OperatorChannel::publish(int64_t now_ns) {
@@ -224,35 +305,8 @@ void OperatorChannel::publish(int64_t now_ns) {
     last_full_publish_ns_ = now_ns;
   }
   ledger_.take_changed(&ids_);
-  for (const int64_t id : ids_) {
-    const detect::LedgerEntry* e = ledger_.find(id);
-    if (e == nullptr) continue;
-    hwr_lcm::detection_t& d = detection_;
-    d.t_ns = e->updated_t_ns;
-    d.detection_id = e->id;
-    d.segment_id = -1;
-    d.keyframe_t_ns = e->keyframe_t_ns;
-    d.source = static_cast<int8_t>(e->source);
-    d.state = static_cast<int8_t>(e->state);
-    d.confidence = std::clamp(e->confidence, 0.0f, 1.0f);
-    d.box_px[0] = e->box_px.x, d.box_px[1] = e->box_px.y;
-    d.box_px[2] = e->box_px.width, d.box_px[3] = e->box_px.height;
-    const Eigen::Vector3d t = e->T_map_box.translation();
-    const Eigen::Quaterniond q(e->T_map_box.linear());
-    for (int k = 0; k < 3; ++k) {
-      d.box_center_world_m[k] = t[k];
-      d.box_size_m[k] = 2.0 * e->half_size_m[k];
-    }
-    d.box_q_world_box[0] = q.w(), d.box_q_world_box[1] = q.x();
-    d.box_q_world_box[2] = q.y(), d.box_q_world_box[3] = q.z();
-    d.num_seam_points = e->has_seam ? 2 : 0;
-    d.seam_world_m.assign(static_cast<size_t>(d.num_seam_points), std::vector<double>(3, 0.0));
-    for (int k = 0; k < d.num_seam_points; ++k)
-      for (int c = 0; c < 3; ++c)
-        d.seam_world_m[static_cast<size_t>(k)][c] = e->seam_map[static_cast<size_t>(k)][c];
-    streamer_->post_detection(d);
-    ++counters_.published;
-  }
+  for (const int64_t id : ids_)
+    if (const detect::LedgerEntry* e = ledger_.find(id)) post(*e);
 }
 
 }  // namespace hwr::robot

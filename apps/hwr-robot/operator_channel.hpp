@@ -26,7 +26,8 @@ namespace hwr::robot {
 struct OperatorChannelCounters {
   uint64_t commands_applied = 0, commands_refused = 0, commands_repeated = 0;
   uint64_t detections_suppressed = 0;  // detections on a rejected region, not added to the map
-  uint64_t regions_restored = 0;       // entries of the prior map's list made regions of this run
+  uint64_t regions_restored = 0;       // placed entries made regions of this run (the prior map's list)
+  uint64_t duplicates_merged = 0;      // ... of them, found again before relocalizing: merged
   uint64_t save_errors = 0;
   uint64_t published = 0;
 };
@@ -56,11 +57,13 @@ class OperatorChannel {
   const std::string& save_path() const { return save_path_; }
 
  private:
-  void restore_placed(recon::FineRegionMap* fine, const std::vector<int64_t>& ids);
+  void restore_placed(recon::FineRegionMap* fine, const std::vector<int64_t>& ids, int64_t now_ns,
+                      bool merge_duplicates);
+  void post(const detect::LedgerEntry& entry);  // one entry on HWR_DETECTION
   void sync_regions(const recon::FineRegionMap& fine, const Eigen::Isometry3d& T_map_world, int64_t now_ns);
-  void apply_command(const hwr_lcm::operator_command_t& msg, recon::FineRegionMap* fine,
-                     const estimation::KeyframeStore& keyframes, const Eigen::Isometry3d& T_map_world,
-                     bool map_frame_known, int64_t now_ns);
+  detect::CommandOutcome apply_command(const hwr_lcm::operator_command_t& msg, recon::FineRegionMap* fine,
+                                       const estimation::KeyframeStore& keyframes,
+                                       const Eigen::Isometry3d& T_map_world, int64_t now_ns, bool* repeated);
   // add: the rectangle drawn on a keyframe lifted to a 3D box (map frame) with that keyframe's depth,
   // when its images are still kept. false when they are not, or too few depth pixels lie inside.
   bool lift_drawn(const estimation::KeyframeStore& keyframes, int64_t keyframe_t_ns, const cv::Rect2f& box_px,
@@ -77,7 +80,10 @@ class OperatorChannel {
   OperatorChannelCounters counters_;
   hwr_lcm::operator_command_t command_;
   hwr_lcm::detection_t detection_;
+  std::vector<std::vector<double>> seam_rows_{2, std::vector<double>(3, 0.0)}, no_seam_rows_;
   std::vector<int64_t> ids_;
+  std::vector<detect::CommandOutcome> acks_;  // this step's outcomes, acknowledged after the save
+  bool unsaved_ = false;                      // the last save failed
   int64_t last_full_publish_ns_ = -1;
   detect::SeamFusion fusion_;
   std::vector<detect::FusedSeam> fused_;  // fusion_.fused() after the last new detection

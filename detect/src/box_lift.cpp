@@ -80,10 +80,16 @@ core::Expected<LiftOutcome> BoxLifter::lift(const cv::Mat& depth_m, const cv::Re
   }
   const BoxLiftConfig& c = config_;
   // Pixel i's centre is at i + 0.5 in the box's continuous coordinates: i in [ceil(x0 - 0.5), x1 - 0.5).
-  const int u0 = std::max(0, static_cast<int>(std::ceil(box_px.x - 0.5f)));
-  const int v0 = std::max(0, static_cast<int>(std::ceil(box_px.y - 0.5f)));
-  const int u1 = std::min(K_.width, static_cast<int>(std::ceil(box_px.x + box_px.width - 0.5f)));
-  const int v1 = std::min(K_.height, static_cast<int>(std::ceil(box_px.y + box_px.height - 0.5f)));
+  if (!(std::isfinite(box_px.x) && std::isfinite(box_px.y) && std::isfinite(box_px.width) &&
+        std::isfinite(box_px.height)))
+    return LiftOutcome::kTooFewDepth;  // no pixel lies in a box without finite edges
+  // Clamped in double before the conversion: a box from the wire may lie far outside int's range.
+  auto pixel = [](double edge, int size) {
+    return static_cast<int>(std::clamp(std::ceil(edge - 0.5), 0.0, static_cast<double>(size)));
+  };
+  const int u0 = pixel(box_px.x, K_.width), v0 = pixel(box_px.y, K_.height);
+  const int u1 = pixel(static_cast<double>(box_px.x) + box_px.width, K_.width);
+  const int v1 = pixel(static_cast<double>(box_px.y) + box_px.height, K_.height);
 
   // 1. Valid depth, back-projected (eq. 3).
   int n = 0;

@@ -122,6 +122,11 @@ void DetectionLedger::changed(int64_t id) {
   if (std::find(changed_.begin(), changed_.end(), id) == changed_.end()) changed_.push_back(id);
 }
 
+int64_t DetectionLedger::stamp(int64_t now_ns) {
+  last_stamp_ns_ = std::max(now_ns, last_stamp_ns_ + 1);
+  return last_stamp_ns_;
+}
+
 void DetectionLedger::take_changed(std::vector<int64_t>* ids) {
   ids->assign(changed_.begin(), changed_.end());
   changed_.clear();
@@ -149,9 +154,9 @@ int64_t DetectionLedger::observe_region(int64_t region_id, const LedgerEntry& se
         e->operator_box || ((e->T_world_box.translation() - seen.T_world_box.translation()).norm() < 1e-3 &&
                             (e->half_size_m - seen.half_size_m).cwiseAbs().maxCoeff() < 1e-3 &&
                             e->keyframe_t_ns == seen.keyframe_t_ns);
-    const bool same_seam = e->has_seam == seen.has_seam &&
-                           (!seen.has_seam || ((e->seam_world[0] - seen.seam_world[0]).norm() < 1e-3 &&
-                                               (e->seam_world[1] - seen.seam_world[1]).norm() < 1e-3));
+    const bool same_seam =
+        !seen.has_seam || (e->has_seam && (e->seam_world[0] - seen.seam_world[0]).norm() < 1e-3 &&
+                           (e->seam_world[1] - seen.seam_world[1]).norm() < 1e-3);
     if (same_box && same_seam) return e->id;
     if (!e->operator_box) {
       e->confidence = seen.confidence;
@@ -160,13 +165,15 @@ int64_t DetectionLedger::observe_region(int64_t region_id, const LedgerEntry& se
       e->half_size_m = seen.half_size_m;
       e->T_world_box = seen.T_world_box;
     }
-    e->has_seam = seen.has_seam;
-    e->seam_world = seen.seam_world;
+    if (seen.has_seam) {  // a restored entry keeps its seam until this run has fused one
+      e->has_seam = true;
+      e->seam_world = seen.seam_world;
+    }
   }
   e->placed = true;
   e->T_map_box = T_map_world * e->T_world_box;
   for (int k = 0; k < 2; ++k) e->seam_map[k] = T_map_world * e->seam_world[k];
-  e->updated_t_ns = now_ns;
+  e->updated_t_ns = stamp(now_ns);
   changed(e->id);
   return e->id;
 }
@@ -199,9 +206,21 @@ void DetectionLedger::place(const Eigen::Isometry3d& T_map_world, std::vector<in
       continue;
     e.T_map_box = T_map_box;
     for (int k = 0; k < 2; ++k) e.seam_map[k] = T_map_world * e.seam_world[k];
-    e.updated_t_ns = now_ns;
+    e.updated_t_ns = stamp(now_ns);
     changed(e.id);
   }
+}
+
+bool DetectionLedger::drop(int64_t id, int64_t now_ns, LedgerEntry* dropped) {
+  const auto it =
+      std::find_if(entries_.begin(), entries_.end(), [id](const LedgerEntry& e) { return e.id == id; });
+  if (it == entries_.end()) return false;
+  *dropped = *it;
+  dropped->state = DetectionState::kRejected;
+  dropped->updated_t_ns = stamp(now_ns);
+  entries_.erase(it);
+  changed_.erase(std::remove(changed_.begin(), changed_.end(), id), changed_.end());
+  return true;
 }
 
 void DetectionLedger::link_region(int64_t entry_id, int64_t region_id) {
@@ -209,7 +228,7 @@ void DetectionLedger::link_region(int64_t entry_id, int64_t region_id) {
 }
 
 CommandOutcome DetectionLedger::apply(const OperatorCommand& c, const Eigen::Isometry3d& T_map_world,
-                                      bool map_frame_known, int64_t now_ns, bool* repeated) {
+                                      int64_t now_ns, bool* repeated) {
   if (repeated != nullptr) *repeated = false;
   for (const CommandOutcome& o : commands_) {
     if (o.command_id == c.command_id && c.command_id >= 0) {
@@ -245,9 +264,11 @@ CommandOutcome DetectionLedger::apply(const OperatorCommand& c, const Eigen::Iso
     e.T_map_box = c.T_map_box;
     e.half_size_m = c.half_size_m;
     e.operator_box = true;
-    e.updated_t_ns = now_ns;
-    e.placed = map_frame_known;
-    if (map_frame_known) e.T_world_box = T_world_map * e.T_map_box;
+    e.updated_t_ns = stamp(now_ns);
+    // Drawn on what the ground shows now: a box in the frame the robot publishes in now, whether or
+    // not that is the prior map's yet.
+    e.placed = true;
+    e.T_world_box = T_world_map * e.T_map_box;
     entries_.push_back(e);
     changed(e.id);
     out.accepted = true;
@@ -276,7 +297,7 @@ CommandOutcome DetectionLedger::apply(const OperatorCommand& c, const Eigen::Iso
     case OperatorCommandKind::kAdd:
       break;  // handled above
   }
-  e->updated_t_ns = now_ns;
+  e->updated_t_ns = stamp(now_ns);
   changed(e->id);
   out.accepted = true;
   commands_.push_back(out);
@@ -389,6 +410,7 @@ core::Expected<DetectionLedger> DetectionLedger::load(const std::string& path, c
                           static_cast<float>(box_px[2]), static_cast<float>(box_px[3]));
     e.T_map_box.linear() = Eigen::Quaterniond(q[0], q[1], q[2], q[3]).normalized().toRotationMatrix();
     e.T_map_box.translation() = t;
+    ledger.last_stamp_ns_ = std::max(ledger.last_stamp_ns_, e.updated_t_ns);
     ledger.entries_.push_back(e);
   }
   for (core::ConfigMap& m : root.list("commands")) {

@@ -93,7 +93,8 @@ struct MapStreamer::Impl {
   hwr_lcm::status_t status_out;      // streamer thread
   hwr_lcm::pose_t pose_out;          // streamer thread
   // The operator channel, under mu (operator-paced: a few messages, so plain queues).
-  static constexpr size_t kMaxDetectionsWaiting = 256, kMaxCommandsWaiting = 64;
+  static constexpr size_t kMaxDetectionsWaiting = 1024, kMaxCommandsWaiting = 64;
+  std::string last_command_error;  // under mu
   std::deque<hwr_lcm::detection_t> detections_out;
   std::deque<hwr_lcm::command_ack_t> acks_out;
   std::deque<hwr_lcm::operator_command_t> commands_in;
@@ -268,7 +269,7 @@ struct MapStreamer::Impl {
     std::lock_guard<std::mutex> lock(mu);
     if (!st.ok()) {
       ++stats.commands_refused;
-      stats.last_command_error = st.message();
+      last_command_error = st.message();
       return;
     }
     if (command_scratch.robot_id != robot_id_) {
@@ -530,6 +531,11 @@ bool MapStreamer::take_operator_command(hwr_lcm::operator_command_t* command) {
   *command = std::move(m.commands_in.front());
   m.commands_in.pop_front();
   return true;
+}
+
+std::string MapStreamer::last_command_error() const {
+  std::lock_guard<std::mutex> lock(impl_->mu);
+  return impl_->last_command_error;
 }
 
 MapStreamerStats MapStreamer::stats() const {

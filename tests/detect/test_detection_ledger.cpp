@@ -69,7 +69,7 @@ TEST(DetectionLedger, GivenARejectThenTheRegionStaysListedRejectedAndSuppressesD
   const Eigen::Isometry3d I = Eigen::Isometry3d::Identity();
   const int64_t id = ledger.observe_region(0, seen_at(1, 2), I, 100);
   EXPECT_FALSE(ledger.suppressed(at(1.1, 2, 0.9), Eigen::Vector3d(0.2, 0.1, 0.1)));
-  const CommandOutcome o = ledger.apply(command(5, OperatorCommandKind::kReject, id), I, true, 200);
+  const CommandOutcome o = ledger.apply(command(5, OperatorCommandKind::kReject, id), I, 200);
   EXPECT_TRUE(o.accepted) << o.reason;
   EXPECT_EQ(o.detection_id, id);
   EXPECT_EQ(ledger.find(id)->state, DetectionState::kRejected);
@@ -85,10 +85,10 @@ TEST(DetectionLedger, GivenTheSameCommandTwiceThenItIsAppliedOnceAndAnsweredAlik
   add.T_map_box = at(4, 4, 1);
   add.half_size_m = Eigen::Vector3d(0.2, 0.1, 0.05);
   bool repeated = true;
-  const CommandOutcome first = ledger.apply(add, I, true, 10, &repeated);
+  const CommandOutcome first = ledger.apply(add, I, 10, &repeated);
   EXPECT_FALSE(repeated);
   ASSERT_TRUE(first.accepted) << first.reason;
-  const CommandOutcome again = ledger.apply(add, I, true, 20, &repeated);
+  const CommandOutcome again = ledger.apply(add, I, 20, &repeated);
   EXPECT_TRUE(repeated);
   EXPECT_EQ(again.detection_id, first.detection_id);
   ASSERT_EQ(ledger.entries().size(), 1u);
@@ -103,20 +103,20 @@ TEST(DetectionLedger, GivenBadCommandsThenEachIsRefusedWithItsReason) {
   DetectionLedger ledger;
   const Eigen::Isometry3d I = Eigen::Isometry3d::Identity();
   const int64_t id = ledger.observe_region(0, seen_at(1, 2), I, 100);
-  CommandOutcome o = ledger.apply(command(1, OperatorCommandKind::kConfirm, 99), I, true, 1);
+  CommandOutcome o = ledger.apply(command(1, OperatorCommandKind::kConfirm, 99), I, 1);
   EXPECT_FALSE(o.accepted);
   EXPECT_EQ(o.reason, "no detection 99");
   OperatorCommand move = command(2, OperatorCommandKind::kMove, id);
   move.half_size_m = Eigen::Vector3d(0.1, -0.1, 0.1);
-  o = ledger.apply(move, I, true, 1);
+  o = ledger.apply(move, I, 1);
   EXPECT_FALSE(o.accepted);
   EXPECT_NE(o.reason.find("move"), std::string::npos);
   OperatorCommand add = command(3, OperatorCommandKind::kAdd, -1);
   add.box_px = cv::Rect2f(1, 1, 10, 10);
-  o = ledger.apply(add, I, true, 1);  // no 3D box
+  o = ledger.apply(add, I, 1);  // no 3D box
   EXPECT_FALSE(o.accepted);
   EXPECT_NE(o.reason.find("no 3D box"), std::string::npos);
-  o = ledger.apply(command(-4, OperatorCommandKind::kConfirm, id), I, true, 1);
+  o = ledger.apply(command(-4, OperatorCommandKind::kConfirm, id), I, 1);
   EXPECT_FALSE(o.accepted);
   EXPECT_EQ(ledger.find(id)->state, DetectionState::kProposed);
   EXPECT_EQ(ledger.entries().size(), 1u);
@@ -129,7 +129,7 @@ TEST(DetectionLedger, GivenAMovedBoxThenDetectionsNoLongerChangeIt) {
   OperatorCommand move = command(4, OperatorCommandKind::kMove, id);
   move.T_map_box = at(1.5, 2, 0.9);
   move.half_size_m = Eigen::Vector3d(0.5, 0.2, 0.1);
-  ASSERT_TRUE(ledger.apply(move, I, true, 200).accepted);
+  ASSERT_TRUE(ledger.apply(move, I, 200).accepted);
   ledger.observe_region(3, seen_at(0.5, 2), I, 300);
   EXPECT_NEAR(ledger.find(id)->T_map_box.translation().x(), 1.5, 1e-12);
   EXPECT_NEAR(ledger.find(id)->half_size_m.x(), 0.5, 1e-12);
@@ -144,9 +144,8 @@ TEST(DetectionLedger, GivenASavedLedgerThenLoadGivesItBackUnplacedUntilTheMapFra
   with_seam.seam_world = {Eigen::Vector3d(2.8, 2, 0.85), Eigen::Vector3d(3.2, 2, 0.85)};
   const int64_t b = ledger.observe_region(1, with_seam, T_map_world, 100);
   EXPECT_NEAR(ledger.find(b)->seam_map[1].x(), 8.2, 1e-12);  // map frame
-  ASSERT_TRUE(ledger.apply(command(11, OperatorCommandKind::kReject, a), T_map_world, true, 200).accepted);
-  CommandOutcome refused =
-      ledger.apply(command(12, OperatorCommandKind::kConfirm, 42), T_map_world, true, 300);
+  ASSERT_TRUE(ledger.apply(command(11, OperatorCommandKind::kReject, a), T_map_world, 200).accepted);
+  CommandOutcome refused = ledger.apply(command(12, OperatorCommandKind::kConfirm, 42), T_map_world, 300);
   ASSERT_FALSE(refused.accepted);
   const std::string path = temp_path("saved.yaml");
   ASSERT_TRUE(ledger.save(path).ok());
@@ -167,7 +166,7 @@ TEST(DetectionLedger, GivenASavedLedgerThenLoadGivesItBackUnplacedUntilTheMapFra
   // The same command id after the restart: answered from the journal, not applied again.
   bool repeated = false;
   EXPECT_FALSE(
-      back->apply(command(12, OperatorCommandKind::kConfirm, b), T_map_world, true, 400, &repeated).accepted);
+      back->apply(command(12, OperatorCommandKind::kConfirm, b), T_map_world, 400, &repeated).accepted);
   EXPECT_TRUE(repeated);
   // Not placed: a rejected entry suppresses nothing until this run knows the map frame.
   EXPECT_FALSE(back->suppressed(at(1, 2, 0.9), Eigen::Vector3d(0.1, 0.1, 0.1)));
@@ -180,6 +179,58 @@ TEST(DetectionLedger, GivenASavedLedgerThenLoadGivesItBackUnplacedUntilTheMapFra
   // New entries continue the numbering.
   EXPECT_EQ(back->observe_region(0, seen_at(7, 7), T_map_world, 600), ledger.next_id());
   std::filesystem::remove(path);
+}
+
+// Before relocalizing, the robot publishes in its own world: a region the operator draws then is in
+// that frame, placed at once, and re-expressed in the prior's frame once the robot knows it.
+TEST(DetectionLedger, GivenAnAddBeforeTheMapFrameIsKnownThenItIsPlacedInTheFrameOfTheMoment) {
+  DetectionLedger ledger;
+  OperatorCommand add = command(1, OperatorCommandKind::kAdd, -1);
+  add.box_px = cv::Rect2f(10, 10, 20, 20);
+  add.T_map_box = at(2, 0, 0);
+  add.half_size_m = Eigen::Vector3d(0.1, 0.1, 0.1);
+  const CommandOutcome o = ledger.apply(add, Eigen::Isometry3d::Identity(), 10);
+  ASSERT_TRUE(o.accepted) << o.reason;
+  EXPECT_TRUE(ledger.find(o.detection_id)->placed);
+  std::vector<int64_t> placed;
+  ledger.place(at(100, 0, 0), &placed, 20);  // relocalized: T_map_world = T_prior_world
+  EXPECT_TRUE(placed.empty());
+  EXPECT_NEAR(ledger.find(o.detection_id)->T_map_box.translation().x(), 102.0, 1e-12);
+  EXPECT_NEAR(ledger.find(o.detection_id)->T_world_box.translation().x(), 2.0, 1e-12);
+}
+
+// A replayed or rebooted robot's clock starts again: every change is still stamped after the saved ones,
+// so the ground station (which keeps the latest version) takes it.
+TEST(DetectionLedger, GivenALoadedLedgerThenLaterChangesAreStampedAfterItsNewestChange) {
+  DetectionLedger ledger;
+  const int64_t id = ledger.observe_region(0, seen_at(1, 2), Eigen::Isometry3d::Identity(), 5'000);
+  const std::string path = temp_path("stamps.yaml");
+  ASSERT_TRUE(ledger.save(path).ok());
+  auto back = DetectionLedger::load(path);
+  ASSERT_TRUE(back.ok()) << back.status().message();
+  ASSERT_TRUE(
+      back->apply(command(3, OperatorCommandKind::kConfirm, id), Eigen::Isometry3d::Identity(), 7).accepted);
+  EXPECT_EQ(back->find(id)->updated_t_ns, 5'001);
+  LedgerEntry dropped;
+  ASSERT_TRUE(back->drop(id, 8, &dropped));
+  EXPECT_EQ(dropped.state, DetectionState::kRejected);
+  EXPECT_EQ(dropped.updated_t_ns, 5'002);
+  EXPECT_EQ(back->find(id), nullptr);
+  EXPECT_FALSE(back->drop(id, 9, &dropped));
+  std::filesystem::remove(path);
+}
+
+// A restored entry keeps its seam until this run fuses one of its own.
+TEST(DetectionLedger, GivenARegionSeenWithoutASeamThenTheSeamItHadStays) {
+  DetectionLedger ledger;
+  LedgerEntry seen = seen_at(1, 2);
+  seen.has_seam = true;
+  seen.seam_world = {Eigen::Vector3d(0.8, 2, 0.9), Eigen::Vector3d(1.2, 2, 0.9)};
+  const int64_t id = ledger.observe_region(0, seen, Eigen::Isometry3d::Identity(), 1);
+  ledger.observe_region(0, seen_at(1.1, 2), Eigen::Isometry3d::Identity(), 2);
+  ASSERT_TRUE(ledger.find(id)->has_seam);
+  EXPECT_NEAR(ledger.find(id)->seam_map[1].x(), 1.2, 1e-12);
+  EXPECT_NEAR(ledger.find(id)->T_map_box.translation().x(), 1.1, 1e-12);
 }
 
 TEST(DetectionLedger, GivenAnEmptyLedgerThenItSavesAndLoadsBackEmpty) {

@@ -62,7 +62,10 @@ struct LedgerEntry {
   // for a region drawn by the operator or seen only once.
   bool has_seam = false;
   std::array<Eigen::Vector3d, 2> seam_map{Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero()};
-  int64_t updated_t_ns = 0;  // last change (robot clock)
+  // Last change: the robot's clock, but always after every earlier change of the list, also one saved
+  // by an earlier run (a replayed or rebooted robot's clock starts again): the ground station keeps
+  // the version with the largest time.
+  int64_t updated_t_ns = 0;
   // Runtime, not persisted: the box and seam in this run's world frame once placed; this run's
   // fine-map region (-1: none, e.g. rejected or not placed yet).
   bool placed = false;
@@ -100,8 +103,9 @@ class DetectionLedger {
  public:
   explicit DetectionLedger(const LedgerConfig& config = {});
 
-  // Reads a ledger saved by save(). kNotFound when the file is absent, kParseError (with the line)
-  // for a malformed one, kInvalidArgument for a value out of range (a state, a box).
+  // Reads a ledger saved by save(). kNotFound when the file is absent; kParseError for text that is
+  // not YAML, kInvalidArgument for a missing key, a wrong type or a value out of range (a state, a
+  // box), each naming the line and key.
   static core::Expected<DetectionLedger> load(const std::string& path, const LedgerConfig& config = {});
   core::Status save(const std::string& path) const;  // atomic (core::write_file_atomic)
   std::string to_yaml() const;
@@ -120,13 +124,18 @@ class DetectionLedger {
   void place(const Eigen::Isometry3d& T_map_world, std::vector<int64_t>* newly_placed, int64_t now_ns);
 
   // Applies an operator command (see the header comment). A command id seen before returns its first
-  // outcome again (repeated = true). Refused (accepted = false, reason set): an unknown detection id,
+  // outcome again (repeated = true). An added region's box is in the frame the robot publishes in now
+  // (T_map_world): it is placed at once. Refused (accepted = false, reason set): an unknown detection id,
   // a move / add without a valid box (positive finite half sizes, rigid pose), an add without a
   // box_px of positive size, a negative command id. The robot mirrors an accepted command on its fine
   // map (remove, set_fixed_box, add_fixed) and links the new region with link_region().
-  CommandOutcome apply(const OperatorCommand& command, const Eigen::Isometry3d& T_map_world,
-                       bool map_frame_known, int64_t now_ns, bool* repeated = nullptr);
+  CommandOutcome apply(const OperatorCommand& command, const Eigen::Isometry3d& T_map_world, int64_t now_ns,
+                       bool* repeated = nullptr);
   void link_region(int64_t entry_id, int64_t region_id);
+  // Removes an entry (a duplicate, found before relocalizing, of a region the prior map's list holds:
+  // the robot merges the two) and returns it marked rejected and stamped now, for the ground
+  // station's copy; false when absent.
+  bool drop(int64_t id, int64_t now_ns, LedgerEntry* dropped);
 
   const std::vector<LedgerEntry>& entries() const { return entries_; }
   const std::vector<CommandOutcome>& commands() const { return commands_; }
@@ -142,12 +151,14 @@ class DetectionLedger {
  private:
   LedgerEntry* find_mutable(int64_t id);
   void changed(int64_t id);
+  int64_t stamp(int64_t now_ns);  // max(now_ns, the last stamp + 1)
 
   LedgerConfig config_;
   std::vector<LedgerEntry> entries_;
   std::vector<CommandOutcome> commands_;
   std::vector<int64_t> changed_;
   int64_t next_id_ = 0;
+  int64_t last_stamp_ns_ = 0;
 };
 
 }  // namespace hwr::detect

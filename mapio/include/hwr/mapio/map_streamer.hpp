@@ -88,7 +88,6 @@ struct MapStreamerStats {
   int64_t commands_received = 0;  // decoded, for this robot, handed to take_operator_command()
   int64_t commands_refused = 0;   // undecodable or invalid (operator_wire.hpp)
   int64_t commands_other_robot = 0, commands_dropped = 0;  // addressed to another robot; inbox full
-  std::string last_command_error;
 };
 
 class MapStreamer {
@@ -114,7 +113,7 @@ class MapStreamer {
   void post_pose(int64_t t_ns, const Eigen::Isometry3d& T_world_cam, bool tracking);
   void post_status(const hwr_lcm::status_t& status);
   // The operator channel (issue #7 item 4). post_detection: an entry of the robot's welding-region
-  // list for HWR_DETECTION (robot_id, run_id filled in); at most 256 wait, a full queue drops the
+  // list for HWR_DETECTION (robot_id, run_id filled in); at most 1024 wait, a full queue drops the
   // oldest (counted). post_command_ack: the answer to an operator command, on HWR_OPERATOR_ACK (robot_id
   // filled in). take_operator_command: the next HWR_OPERATOR_CMD addressed to this robot that decoded and
   // validated (operator_wire.hpp), oldest first; false when none waits (at most 64 wait: a full inbox
@@ -126,6 +125,8 @@ class MapStreamer {
   // Waits until everything submitted has been acknowledged (true) or timeout_s passed (false).
   bool flush(double timeout_s);
   MapStreamerStats stats() const;
+  // Why the last refused operator command was refused (empty when none was).
+  std::string last_command_error() const;
 
   MapStreamer(const MapStreamer&) = delete;
   MapStreamer& operator=(const MapStreamer&) = delete;

@@ -1,2 +1,0 @@
-confirm 5
-bogus
