@@ -336,6 +336,9 @@ void detect_truth_regions(Robot* r) {
   r->detected_upto = std::max(r->detected_upto, kfs.newest_id());
 }
 
+// "onnx:PATH" / "tensorrt:PATH" -> PATH.
+std::string choice_model_path(const std::string& regions) { return regions.substr(regions.find(':') + 1); }
+
 // --regions geometry|onnx:|tensorrt:: each new keyframe whose images are still in the store goes
 // through the detector; its regions are placed with the keyframe's estimated pose. Before the
 // keyframes are fused.
@@ -937,7 +940,7 @@ int run(const Args& args) {
       const size_t colon = args.regions.find(':');
       choice.backend = args.regions.compare(0, colon, "onnx") == 0 ? hwr::detect::DetectorBackend::kOnnx
                                                                    : hwr::detect::DetectorBackend::kTensorRt;
-      choice.model.model_path = args.regions.substr(colon + 1);
+      choice.model.model_path = choice_model_path(args.regions);
     }
     auto made = hwr::detect::make_detector(choice, info.intrinsics);
     if (!made.ok()) {
@@ -953,8 +956,14 @@ int run(const Args& args) {
     }
     robot.detector = detector.detector.get();
     robot.detected = &detections;
-    std::fprintf(stderr, "hwr-robot: welding regions: the %s detector on each keyframe\n",
-                 hwr::detect::detector_backend_name(detector.backend));
+    if (detector.backend == hwr::detect::DetectorBackend::kGeometry) {
+      std::fprintf(stderr,
+                   "hwr-robot: welding regions: the geometric seam detector on each keyframe's depth\n");
+    } else {
+      std::fprintf(stderr, "hwr-robot: welding regions: the %s detector (%s) on each keyframe\n",
+                   hwr::detect::detector_backend_name(detector.backend),
+                   choice_model_path(args.regions).c_str());
+    }
   }
   // The operator channel: the detectors' regions as a list the operator corrects (operator_channel.hpp),
   // kept in the map store and, on the next visit, read back from the prior map.

@@ -95,15 +95,28 @@ TEST(HwrRobotRegions, GivenTheGeometricSeamDetectorThenTheFilletPassedCloseByIsA
   EXPECT_LT(std::atof(kv.at("ae_mm").c_str()), 3.0);
 }
 
-TEST(HwrRobotRegions, GivenRegionsTruthWithoutASimulatorSourceOrABadValueThenItSaysSoAndExitCode2) {
+TEST(HwrRobotRegions, GivenRegionsTruthWithoutASimulatorSourceABadValueOrAMissingModelThenItSaysSo) {
   const auto teddy =
       hwr::testing::run_cli(kRobot, "--source tum:" + kTeddy + " --duration 1 --regions truth");
   EXPECT_EQ(teddy.exit_code, 2);
   EXPECT_NE(teddy.out.find("--regions truth needs a simulator source"), std::string::npos) << teddy.out;
   const auto bad = hwr::testing::run_cli(kRobot, "--source sim:lab --regions detector");
   EXPECT_EQ(bad.exit_code, 2);
-  EXPECT_NE(bad.out.find("--regions: expected 'truth' or 'geometry', got 'detector'"), std::string::npos)
+  EXPECT_NE(bad.out.find("--regions: expected 'truth', 'geometry', 'onnx:MODEL' or 'tensorrt:ENGINE', got "
+                         "'detector'"),
+            std::string::npos)
       << bad.out;
+  // A model that cannot be used: said, and the geometric seam detector runs instead.
+  const auto missing_model = hwr::testing::run_cli(
+      kRobot, "--source tum:" + kTeddy + " --duration 1 --quiet --regions onnx:/nonexistent/m.onnx");
+  EXPECT_EQ(missing_model.exit_code, 0) << missing_model.out;
+  EXPECT_NE(
+      missing_model.out.find("--regions onnx:/nonexistent/m.onnx: the model is unusable (not found: onnx "
+                             "detector: model '/nonexistent/m.onnx' not found"),
+      std::string::npos)
+      << missing_model.out;
+  EXPECT_NE(missing_model.out.find("the geometric seam detector on each keyframe's depth"), std::string::npos)
+      << missing_model.out;
 }
 
 TEST(HwrEvalRegionAe, GivenAMissingStoreOrOptionThenOneLineAndANonZeroExit) {
