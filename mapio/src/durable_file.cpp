@@ -1,8 +1,10 @@
 #include "durable_file.hpp"
 
 #include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
@@ -16,6 +18,40 @@ std::string parent_directory(const std::string& path) {
   if (slash == std::string::npos) return ".";
   if (slash == 0) return "/";
   return path.substr(0, slash);
+}
+
+core::Status make_dir(const std::string& parent, const std::string& dir) {
+  if (::mkdir(dir.c_str(), 0755) == 0) return core::fsync_directory(parent);
+  if (errno == EEXIST) {
+    struct stat st {};
+    if (::stat(dir.c_str(), &st) == 0 && S_ISDIR(st.st_mode)) return core::Status::Ok();
+    return core::IoError(dir + ": exists and is not a folder");
+  }
+  return core::IoError(dir + ": cannot create folder: " + std::strerror(errno));
+}
+
+core::Status list_dir(const std::string& dir, std::vector<std::filesystem::directory_entry>* out) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  fs::directory_iterator it(dir, ec), end;
+  if (ec) return core::IoError(dir + ": cannot list folder: " + ec.message());
+  for (; it != end; it.increment(ec)) {
+    if (ec) return core::IoError(dir + ": cannot list folder: " + ec.message());
+    out->push_back(*it);
+  }
+  std::sort(out->begin(), out->end(),
+            [](const fs::directory_entry& a, const fs::directory_entry& b) { return a.path() < b.path(); });
+  return core::Status::Ok();
+}
+
+bool is_dir(const std::filesystem::directory_entry& e) {
+  std::error_code ec;
+  return e.is_directory(ec) && !e.is_symlink(ec);
+}
+
+bool is_file(const std::filesystem::directory_entry& e) {
+  std::error_code ec;
+  return e.is_regular_file(ec) && !e.is_symlink(ec);
 }
 
 AtomicFileWriter::~AtomicFileWriter() { abandon(); }

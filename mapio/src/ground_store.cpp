@@ -18,6 +18,10 @@
 
 namespace hwr::mapio {
 namespace fs = std::filesystem;
+using detail::is_dir;
+using detail::is_file;
+using detail::list_dir;
+using detail::make_dir;
 
 namespace {
 
@@ -148,17 +152,6 @@ core::Status read_stored_chunk(const std::string& path, hwr_lcm::map_chunk_t* ou
   return core::Status::Ok();
 }
 
-// mkdir of one level; fsync of its parent when it was created, so the new entry is durable.
-core::Status make_dir(const std::string& parent, const std::string& dir) {
-  if (::mkdir(dir.c_str(), 0755) == 0) return core::fsync_directory(parent);
-  if (errno == EEXIST) {
-    struct stat st {};
-    if (::stat(dir.c_str(), &st) == 0 && S_ISDIR(st.st_mode)) return core::Status::Ok();
-    return core::IoError(dir + ": exists and is not a folder");
-  }
-  return core::IoError(dir + ": cannot create folder: " + std::strerror(errno));
-}
-
 }  // namespace
 
 // --- the index -------------------------------------------------------------------------------------
@@ -257,33 +250,6 @@ struct GroundStore::State {
                             const std::string& dir);
   void note(std::string line) { report.notes.push_back(std::move(line)); }
 };
-
-namespace {
-
-// Entries of a folder, sorted by name; kIoError when it cannot be listed.
-core::Status list_dir(const std::string& dir, std::vector<fs::directory_entry>* out) {
-  std::error_code ec;
-  fs::directory_iterator it(dir, ec), end;
-  if (ec) return core::IoError(dir + ": cannot list folder: " + ec.message());
-  for (; it != end; it.increment(ec)) {
-    if (ec) return core::IoError(dir + ": cannot list folder: " + ec.message());
-    out->push_back(*it);
-  }
-  std::sort(out->begin(), out->end(),
-            [](const fs::directory_entry& a, const fs::directory_entry& b) { return a.path() < b.path(); });
-  return core::Status::Ok();
-}
-
-bool is_dir(const fs::directory_entry& e) {
-  std::error_code ec;
-  return e.is_directory(ec) && !e.is_symlink(ec);
-}
-bool is_file(const fs::directory_entry& e) {
-  std::error_code ec;
-  return e.is_regular_file(ec) && !e.is_symlink(ec);
-}
-
-}  // namespace
 
 core::Status GroundStore::State::scan() {
   std::vector<fs::directory_entry> robots;

@@ -12,12 +12,17 @@
 #include <ctime>
 #include <filesystem>
 
+#include "durable_file.hpp"
 #include "hwr/core/file_io.hpp"
 #include "hwr/core/log.hpp"
 #include "hwr/mapio/ground_store.hpp"
 
 namespace hwr::mapio {
 namespace fs = std::filesystem;
+using detail::is_dir;
+using detail::is_file;
+using detail::list_dir;
+using detail::make_dir;
 
 namespace {
 
@@ -76,39 +81,6 @@ std::string one_line(const std::string& s) {
     if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f) c = ' ';
   }
   return out;
-}
-
-core::Status make_dir(const std::string& parent, const std::string& dir) {
-  if (::mkdir(dir.c_str(), 0755) == 0) return core::fsync_directory(parent);
-  if (errno == EEXIST) {
-    struct stat st {};
-    if (::stat(dir.c_str(), &st) == 0 && S_ISDIR(st.st_mode)) return core::Status::Ok();
-    return core::IoError(dir + ": exists and is not a folder");
-  }
-  return core::IoError(dir + ": cannot create folder: " + std::strerror(errno));
-}
-
-// Entries of a folder, sorted by name; kIoError when it cannot be listed.
-core::Status list_dir(const std::string& dir, std::vector<fs::directory_entry>* out) {
-  std::error_code ec;
-  fs::directory_iterator it(dir, ec), end;
-  if (ec) return core::IoError(dir + ": cannot list folder: " + ec.message());
-  for (; it != end; it.increment(ec)) {
-    if (ec) return core::IoError(dir + ": cannot list folder: " + ec.message());
-    out->push_back(*it);
-  }
-  std::sort(out->begin(), out->end(),
-            [](const fs::directory_entry& a, const fs::directory_entry& b) { return a.path() < b.path(); });
-  return core::Status::Ok();
-}
-
-bool is_dir(const fs::directory_entry& e) {
-  std::error_code ec;
-  return e.is_directory(ec) && !e.is_symlink(ec);
-}
-bool is_file(const fs::directory_entry& e) {
-  std::error_code ec;
-  return e.is_regular_file(ec) && !e.is_symlink(ec);
 }
 
 // Reads one stored message and decodes it with the link's own bounded decoder. kCorruptData (what
