@@ -129,11 +129,12 @@ TEST(HwrRobotOperator,
   const pid_t ground = start(kGround + " --out " + dir + "/ground --link '" + kUrl + "' --status-interval 0",
                              dir + "/ground.txt");
 
-  // 1. The robot passes fillet_s1 at ~14 s (simulated at sensor rate, so the commands reach it live).
-  const pid_t robot =
-      start(kRobot + " --source sim:lab --duration 26 --realtime --quiet --regions geometry --link '" + kUrl +
-                "' --robot-id " + kRobotId + " --link-wait 20 --map-out " + map1,
-            dir + "/robot1.txt");
+  // 1. The robot passes fillet_s1 at ~14 s of the walk and runs on to 32 s. Not paced at sensor rate:
+  // every frame is processed however loaded the host (a paced robot drops frames there), and the
+  // commands still reach it live (the run lasts ~20 s of wall time after the first detection).
+  const pid_t robot = start(kRobot + " --source sim:lab --duration 32 --quiet --regions geometry --link '" +
+                                kUrl + "' --robot-id " + kRobotId + " --link-wait 20 --map-out " + map1,
+                            dir + "/robot1.txt");
   int64_t rejected_id = -1, added_id = -1, reject_cmd = -1, add_cmd = -1, run1 = -1;
   {
     Ground g = Ground::open(console_dir);
@@ -249,16 +250,14 @@ TEST(HwrRobotOperator,
     });
     const int64_t seen_before = g.console->stats().messages;
     // 12 s: it relocalizes against map1 after ~2 m, then places the list in this run's world.
-    const pid_t robot2 = start(
-        kRobot + " --source sim:lab --duration 12 --realtime --quiet --regions geometry --link '" + kUrl +
-            "' --robot-id " + kRobotId + " --link-wait 20 --prior-map " + map1 + " --map-out " + map2,
-        dir + "/robot2.txt");
+    const pid_t robot2 =
+        start(kRobot + " --source sim:lab --duration 12 --quiet --regions geometry --link '" + kUrl +
+                  "' --robot-id " + kRobotId + " --link-wait 20 --prior-map " + map1 + " --map-out " + map2,
+              dir + "/robot2.txt");
     int code = 0;
     while (!exited(robot2, &code)) g.pump(200);
     g.pump(500);
-    // Its exit code is not asked: a robot paced in real time on this shared 2-core host may refuse map
-    // batches to the link (exit 1, "the ground station's map has holes"); the list is what is tested.
-    EXPECT_GE(code, 0) << read_text(dir + "/robot2.txt");
+    EXPECT_EQ(code, 0) << read_text(dir + "/robot2.txt");
     // The restarted robot published its list: the same versions of the same entries (same t_ns: the
     // console keeps what it has).
     EXPECT_GT(g.console->stats().messages, seen_before);
