@@ -12,8 +12,8 @@
 // matched seams / seams in view; endpoint error over the ends seen on both sides; time = thread CPU
 // of detect(). Fused (seam_precision=, seam_recall=, seam_endpoint_mm=, the figures): every
 // detection of the sequence goes to a SeamFusion (detect/seam_fusion.hpp); its fused seams are
-// matched to the seams seen in at least one frame, a true end known when some frame saw it. Butt
-// joints are not detected yet, so the recall over all seams is printed beside the fillets' own.
+// matched to the seams seen in at least one frame, a true end known when some frame saw it. The recall
+// of each kind (seam_recall_fillet=, seam_recall_butt=) is printed beside the recall over all seams.
 
 #include "bench_command.hpp"
 
@@ -138,6 +138,7 @@ int run_detect(int argc, char** argv) {
         truths_all > 0 ? static_cast<double>(x.truths_matched[0] + x.truths_matched[1]) / truths_all : 0.0;
     const double recall_fillet =
         x.truths[0] > 0 ? static_cast<double>(x.truths_matched[0]) / x.truths[0] : 0.0;
+    const double recall_butt = x.truths[1] > 0 ? static_cast<double>(x.truths_matched[1]) / x.truths[1] : 0.0;
     std::printf("%-10s %7d %9d %7d %9.3f %9.3f %9.3f %6.1f / %-5.1f %6.1f / %-5.1f %5.2f / %-5.2f\n",
                 label.c_str(), x.frames, x.frames_with_seams, x.detections, precision, recall, recall_fillet,
                 median(x.endpoint_mm), percentile(x.endpoint_mm, 0.9), median(x.lateral_mm),
@@ -150,6 +151,7 @@ int run_detect(int argc, char** argv) {
         seen_all > 0 ? static_cast<double>(x.seen_matched[0] + x.seen_matched[1]) / seen_all : 0.0;
     const double fused_recall_fillet =
         x.seen[0] > 0 ? static_cast<double>(x.seen_matched[0]) / x.seen[0] : 0.0;
+    const double fused_recall_butt = x.seen[1] > 0 ? static_cast<double>(x.seen_matched[1]) / x.seen[1] : 0.0;
     std::printf(
         "%-10s fused over the keyframes: %d seams, %d matched (precision %.3f); seams seen: %d fillet (%d "
         "matched), %d butt (%d matched), recall %.3f (fillets %.3f); endpoint %.1f mm median (%zu ends), "
@@ -161,14 +163,16 @@ int run_detect(int argc, char** argv) {
     const std::string p = label == "all" ? "" : label + "_";
     std::snprintf(
         buf, sizeof(buf),
-        "seam_%sprecision=%.3f\nseam_%srecall=%.3f\nseam_%srecall_fillet=%.3f\nseam_%sendpoint_mm=%.2f\n"
-        "seam_%slateral_mm=%.2f\nseam_%sframe_precision=%.3f\nseam_%sframe_recall=%.3f\n"
-        "seam_%sframe_recall_fillet=%.3f\nseam_%sframe_endpoint_mm=%.2f\nseam_%sframe_lateral_mm=%.2f\n"
-        "detect_%sms_median=%.3f\ndetect_%sms_p95=%.3f",
+        "seam_%sprecision=%.3f\nseam_%srecall=%.3f\nseam_%srecall_fillet=%.3f\nseam_%srecall_butt=%.3f\n"
+        "seam_%sendpoint_mm=%.2f\nseam_%slateral_mm=%.2f\nseam_%sframe_precision=%.3f\n"
+        "seam_%sframe_recall=%.3f\nseam_%sframe_recall_fillet=%.3f\nseam_%sframe_recall_butt=%.3f\n"
+        "seam_%sframe_endpoint_mm=%.2f\nseam_%sframe_lateral_mm=%.2f\ndetect_%sms_median=%.3f\n"
+        "detect_%sms_p95=%.3f",
         p.c_str(), fused_precision, p.c_str(), fused_recall, p.c_str(), fused_recall_fillet, p.c_str(),
-        median(x.fused_endpoint_mm), p.c_str(), median(x.fused_lateral_mm), p.c_str(), precision, p.c_str(),
-        recall, p.c_str(), recall_fillet, p.c_str(), median(x.endpoint_mm), p.c_str(), median(x.lateral_mm),
-        p.c_str(), median(x.detect_ms), p.c_str(), percentile(x.detect_ms, 0.95));
+        fused_recall_butt, p.c_str(), median(x.fused_endpoint_mm), p.c_str(), median(x.fused_lateral_mm),
+        p.c_str(), precision, p.c_str(), recall, p.c_str(), recall_fillet, p.c_str(), recall_butt, p.c_str(),
+        median(x.endpoint_mm), p.c_str(), median(x.lateral_mm), p.c_str(), median(x.detect_ms), p.c_str(),
+        percentile(x.detect_ms, 0.95));
     keys.push_back(buf);
   };
   for (const std::string& name : names) {

@@ -284,27 +284,7 @@ Detection FilletFinder::to_detection(const hal::PinholeIntrinsics& K, const Seam
       0.5 * (d.seam_cam[0] + d.seam_cam[1]) + 0.5 * seam.width_m * across + 0.5 * seam.height_m * R.col(2);
   d.half_size_m = Eigen::Vector3d(0.5 * length, 0.5 * seam.width_m, 0.5 * seam.height_m) +
                   Eigen::Vector3d::Constant(c.box_margin_m);
-  // The box's image rectangle: its corners in front of the camera, clipped to the image.
-  double u_min = 1e30, v_min = 1e30, u_max = -1e30, v_max = -1e30;
-  for (int i = 0; i < 8; ++i) {
-    const Eigen::Vector3d corner_box((i & 4 ? 1 : -1) * d.half_size_m.x(),
-                                     (i & 2 ? 1 : -1) * d.half_size_m.y(),
-                                     (i & 1 ? 1 : -1) * d.half_size_m.z());
-    double u, v;
-    if (!project(K, d.T_cam_box * corner_box, &u, &v)) continue;
-    u_min = std::min(u_min, u);
-    v_min = std::min(v_min, v);
-    u_max = std::max(u_max, u);
-    v_max = std::max(v_max, v);
-  }
-  if (u_max >= u_min) {
-    u_min = std::clamp(u_min, 0.0, K.width - 1.0);
-    u_max = std::clamp(u_max, 0.0, K.width - 1.0);
-    v_min = std::clamp(v_min, 0.0, K.height - 1.0);
-    v_max = std::clamp(v_max, 0.0, K.height - 1.0);
-    d.box_px = cv::Rect2f(static_cast<float>(u_min), static_cast<float>(v_min),
-                          static_cast<float>(u_max - u_min), static_cast<float>(v_max - v_min));
-  }
+  d.box_px = box_image_rect(K, d.T_cam_box, d.half_size_m);
   const double dev = perpendicular_dev_rad(seam.base.normal, seam.web.normal);
   d.confidence =
       static_cast<float>((1.0 - dev / c.max_perpendicular_dev_rad) *

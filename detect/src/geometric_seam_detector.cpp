@@ -28,12 +28,15 @@ bool same_seam(const Detection& a, const Detection& b, double max_angle_rad, dou
 
 GeometricSeamDetector::GeometricSeamDetector(const GeometricSeamConfig& config,
                                              const hal::PinholeIntrinsics& K, OrganizedCloud cloud,
-                                             PlaneSegmenter planes, FilletFinder fillets)
+                                             PlaneSegmenter planes, FilletFinder fillets,
+                                             RaisedRegionFinder raised, ButtFinder butts)
     : config_(config),
       K_(K),
       cloud_(std::move(cloud)),
       planes_(std::move(planes)),
       fillets_(std::move(fillets)),
+      raised_(std::move(raised)),
+      butts_(std::move(butts)),
       candidates_(config.max_detections * 4) {}
 
 core::Expected<std::unique_ptr<GeometricSeamDetector>> GeometricSeamDetector::create(
@@ -50,8 +53,13 @@ core::Expected<std::unique_ptr<GeometricSeamDetector>> GeometricSeamDetector::cr
   if (!planes.ok()) return planes.status();
   auto fillets = FilletFinder::create(config.fillet, config.noise, cloud->width() * cloud->height());
   if (!fillets.ok()) return fillets.status();
+  auto raised = RaisedRegionFinder::create(config.raised, config.noise, cloud->width(), cloud->height());
+  if (!raised.ok()) return raised.status();
+  auto butts = ButtFinder::create(config.butt, config.noise, K);
+  if (!butts.ok()) return butts.status();
   return std::unique_ptr<GeometricSeamDetector>(new GeometricSeamDetector(
-      config, K, std::move(cloud.value()), std::move(planes.value()), std::move(fillets.value())));
+      config, K, std::move(cloud.value()), std::move(planes.value()), std::move(fillets.value()),
+      std::move(raised.value()), std::move(butts.value())));
 }
 
 core::Status GeometricSeamDetector::detect(const KeyframeView& view, DetectionList* out) {
@@ -66,6 +74,13 @@ core::Status GeometricSeamDetector::detect(const KeyframeView& view, DetectionLi
       view.K.cx != K_.cx || view.K.cy != K_.cy) {
     return core::InvalidArgument("geometric seam detector: the keyframe's intrinsics are not the detector's");
   }
+  // An empty colour image is none (a depth-only source).
+  const cv::Mat* bgr = view.bgr != nullptr && !view.bgr->empty() ? view.bgr : nullptr;
+  if (bgr != nullptr && (bgr->type() != CV_8UC3 || bgr->cols != K_.width || bgr->rows != K_.height)) {
+    return core::InvalidArgument("geometric seam detector: keyframe " + std::to_string(view.keyframe_id) +
+                                 "'s colour image must be CV_8UC3 of " + std::to_string(K_.width) + "x" +
+                                 std::to_string(K_.height) + " (or none)");
+  }
   core::Status s = cloud_.build(*view.depth_m);
   if (!s.ok()) return s;
   stats_.valid_points = cloud_.valid_count();
@@ -75,6 +90,8 @@ core::Status GeometricSeamDetector::detect(const KeyframeView& view, DetectionLi
   const Eigen::Vector3d up_cam = view.T_world_cam.linear().transpose() * Eigen::Vector3d::UnitZ();
   candidates_.clear();
   stats_.candidates = fillets_.find(cloud_, planes_, up_cam, &candidates_);
+  stats_.raised_regions = raised_.find(cloud_, planes_, up_cam);
+  stats_.candidates += butts_.find(cloud_, raised_, bgr, *view.depth_m, &candidates_);
   candidates_.keep_most_confident(candidates_.capacity());
   for (int i = 0; i < candidates_.size(); ++i) {
     bool duplicate = false;

@@ -372,9 +372,4 @@ core::Status PlaneSegmenter::segment(const OrganizedCloud& cloud) {
   return core::Status::Ok();
 }
 
-int PlaneSegmenter::point_label(const OrganizedCloud& cloud, int x, int y) const {
-  if (!cloud.valid(x, y)) return -1;
-  return point_label_[static_cast<size_t>(y) * grid_width_ + x];
-}
-
 }  // namespace hwr::detect

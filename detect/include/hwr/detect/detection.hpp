@@ -13,6 +13,8 @@
 #include <Eigen/Geometry>
 #include <opencv2/core/types.hpp>
 
+#include "hwr/hal/pinhole_camera.hpp"
+
 namespace hwr::detect {
 
 enum class DetectionSource : uint8_t { kModel = 0, kGeometry = 1, kOperator = 2 };
@@ -46,6 +48,11 @@ struct Detection {
 // Fills the *_world members from the camera-frame ones: seam_world = T_world_cam * seam_cam,
 // T_world_box = T_world_cam * T_cam_box.
 void place_in_world(const Eigen::Isometry3d& T_world_cam, Detection* d);
+
+// The image rectangle of a box (T_cam_box, half sizes): its corners in front of the camera projected,
+// clipped to the image; empty when no corner is in front.
+cv::Rect2f box_image_rect(const hal::PinholeIntrinsics& K, const Eigen::Isometry3d& T_cam_box,
+                          const Eigen::Vector3d& half_size_m);
 
 // A fixed-capacity list of detections (capacity reserved at construction; push never allocates).
 class DetectionList {

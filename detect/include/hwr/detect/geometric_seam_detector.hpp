@@ -1,18 +1,21 @@
 #pragma once
-// The geometric seam detector (issue #7 item 2): welding seams from the keyframe's depth alone, no
-// trained weights. The depth image is back-projected on a grid (organized_cloud.hpp), segmented into
-// planes (plane_segmentation.hpp), and fillet joints are found among the planes (fillet_finder.hpp).
+// The geometric seam detector (issue #7 item 2): welding seams from the keyframe's depth and colour,
+// no trained weights. The depth image is back-projected on a grid (organized_cloud.hpp), segmented into
+// planes (plane_segmentation.hpp), and fillet joints are found among the planes (fillet_finder.hpp);
+// plates lying raised on a horizontal support (raised_regions.hpp) are searched for a butt joint's gap
+// line in the colour image and the depth (butt_finder.hpp; depth only without a colour image).
 // Detections of one seam found twice (a plate split into two planes) are merged, the most confident
-// max_detections kept, and each is placed in the world with the keyframe's pose. Butt joints (two
-// plates side by side, a 2-3 mm gap) are not found yet: the gap is below one pixel and the depth
-// noise (docs/detection.md). Sized at create(); detect() allocates nothing.
+// max_detections kept, and each is placed in the world with the keyframe's pose. Sized at create();
+// detect() allocates nothing.
 
 #include <memory>
 
+#include "hwr/detect/butt_finder.hpp"
 #include "hwr/detect/detector.hpp"
 #include "hwr/detect/fillet_finder.hpp"
 #include "hwr/detect/organized_cloud.hpp"
 #include "hwr/detect/plane_segmentation.hpp"
+#include "hwr/detect/raised_regions.hpp"
 
 namespace hwr::detect {
 
@@ -21,6 +24,8 @@ struct GeometricSeamConfig {
   OrganizedCloudConfig cloud;
   PlaneSegmentationConfig planes;
   FilletConfig fillet;
+  RaisedRegionConfig raised;
+  ButtConfig butt;
   int max_detections = 16;
   // Two detections are one seam when their lines are within these (the less confident is dropped).
   double duplicate_angle_rad = 0.175;
@@ -28,7 +33,7 @@ struct GeometricSeamConfig {
 };
 
 struct GeometricSeamStats {
-  int valid_points = 0, planes = 0, candidates = 0, duplicates = 0;
+  int valid_points = 0, planes = 0, raised_regions = 0, candidates = 0, duplicates = 0;
 };
 
 class GeometricSeamDetector final : public Detector {
@@ -38,18 +43,22 @@ class GeometricSeamDetector final : public Detector {
                                                                        const hal::PinholeIntrinsics& K);
 
   DetectionSource source() const override { return DetectionSource::kGeometry; }
-  // Needs view.depth_m (CV_32FC1 of K's size); view.bgr is not used.
+  // Needs view.depth_m (CV_32FC1 of K's size); view.bgr (CV_8UC3 of K's size) when given: null or
+  // empty is none (butt joints then from the depth alone), another type or size an error.
   core::Status detect(const KeyframeView& view, DetectionList* out) override;
   const GeometricSeamStats& last_stats() const { return stats_; }
 
  private:
   GeometricSeamDetector(const GeometricSeamConfig& config, const hal::PinholeIntrinsics& K,
-                        OrganizedCloud cloud, PlaneSegmenter planes, FilletFinder fillets);
+                        OrganizedCloud cloud, PlaneSegmenter planes, FilletFinder fillets,
+                        RaisedRegionFinder raised, ButtFinder butts);
   GeometricSeamConfig config_;
   hal::PinholeIntrinsics K_;
   OrganizedCloud cloud_;
   PlaneSegmenter planes_;
   FilletFinder fillets_;
+  RaisedRegionFinder raised_;
+  ButtFinder butts_;
   DetectionList candidates_;
   GeometricSeamStats stats_;
 };

@@ -34,6 +34,8 @@ class OrganizedCloud {
   int width() const { return width_; }    // grid columns: K.width / stride (rounded up)
   int height() const { return height_; }  // grid rows
   int stride_px() const { return config_.stride_px; }
+  float min_depth_m() const { return config_.min_depth_m; }  // the valid depth range
+  float max_depth_m() const { return config_.max_depth_m; }
   bool valid(int x, int y) const { return valid_[static_cast<size_t>(y) * width_ + x] != 0; }
   // Camera frame, metres; meaningful only where valid().
   const Eigen::Vector3f& point(int x, int y) const { return points_[static_cast<size_t>(y) * width_ + x]; }

@@ -64,7 +64,9 @@ class PlaneSegmenter {
   // merge_offset_sigmas sigma(z) + merge_offset_floor_m of it (design section 3.2c: the borders of a
   // plane and the points next to a corner); -1 otherwise and for an invalid point.
   int cell_label(int cx, int cy) const { return cell_label_[static_cast<size_t>(cy) * cells_x_ + cx]; }
-  int point_label(const OrganizedCloud& cloud, int x, int y) const;
+  int point_label(const OrganizedCloud& cloud, int x, int y) const {
+    return cloud.valid(x, y) ? point_label_[static_cast<size_t>(y) * grid_width_ + x] : -1;
+  }
   const PlaneSegmentationConfig& config() const { return config_; }
 
  private:
