@@ -117,7 +117,7 @@ demo outputs:
   $out/map-store/
       the map store: closed local maps (segments/seg_NNNNNN: segment.yaml, keyframes.bin,
       cloud.bin, fine.bin) with their keyframes, ORB + NDT junctions, and the welding regions the
-      geometric seam detector found (fillet joints; --regions geometry) with their 2 mm fine clouds
+      geometric seam detector found (fillet and butt joints; --regions geometry) with their 2 mm fine clouds
       (docs/reconstruction.md, docs/detection.md); detections.yaml: the robot's welding-region
       list with the operator's commands and their outcomes
   $out/map-cloud.bin
@@ -140,7 +140,8 @@ demo outputs:
       (docs/relocalization.md, docs/prior_map_update.md); its detections.yaml continues the first
       visit's list (the operator's confirmation kept)
 
-welding-region detection (detect/) finds fillet joints on the keyframes' depth; butt joints come
-next; a learned detector runs with --regions onnx:MODEL (no trained model ships) (docs/detection.md).
+welding-region detection (detect/) finds fillet joints on the keyframes' depth and butt joints from
+the depth and the colour; a learned detector runs with --regions onnx:MODEL (no trained model ships)
+(docs/detection.md).
 With --regions truth instead, the simulator's joints are the detections (every plate in step 4).
 MSG
