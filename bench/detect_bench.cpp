@@ -258,13 +258,26 @@ int run_detect(int argc, char** argv) {
     }
     {
       std::vector<detect::SeamSegment> fused_seams, seen_list;
-      for (const detect::FusedSeam& f : fusion.fused()) fused_seams.push_back(f.seam);
+      const std::vector<detect::FusedSeam> fused_all = fusion.fused();
+      for (const detect::FusedSeam& f : fused_all) fused_seams.push_back(f.seam);
       for (size_t k = 0; k < truths.size(); ++k)
         if (seen[k]) seen_list.push_back(seen_truths[k]);
       const detect::SeamScore fs = detect::score_seams(fused_seams, seen_list);
       t.fused = fs.detections;
       t.fused_matched = fs.matched;
       for (const detect::SeamSegment& v : seen_list) ++t.seen[static_cast<int>(v.kind)];
+      // The fused seams that match no true one, for a reader to look at (world frame).
+      std::vector<bool> fused_matched(fused_seams.size(), false);
+      for (const detect::SeamMatch& m : fs.matches) fused_matched[static_cast<size_t>(m.detected)] = true;
+      for (size_t k = 0; k < fused_seams.size(); ++k) {
+        if (fused_matched[k]) continue;
+        const detect::SeamSegment& f = fused_seams[k];
+        std::printf(
+            "%s: fused %s seam matching no true seam: (%.3f, %.3f, %.3f) -> (%.3f, %.3f, %.3f) m, from %d "
+            "detections\n",
+            name.c_str(), detect::seam_kind_name(f.kind), f.a.x(), f.a.y(), f.a.z(), f.b.x(), f.b.y(),
+            f.b.z(), fused_all[k].detections);
+      }
       for (const detect::SeamMatch& m : fs.matches) {
         ++t.seen_matched[static_cast<int>(seen_list[static_cast<size_t>(m.truth)].kind)];
         t.fused_lateral_mm.push_back(1e3 * m.lateral_m);
