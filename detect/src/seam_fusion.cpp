@@ -47,8 +47,10 @@ bool SeamFusion::add(const Detection& d) {
     ++t.n;
     t.t_lo = std::min(t.t_lo, ta);
     t.t_hi = std::max(t.t_hi, tb);
-    if (a_observed) t.ends_lo.push_back(ta);
-    if (b_observed) t.ends_hi.push_back(tb);
+    // The first max_ends_per_track seen ends make each median: a run of any length keeps bounded memory.
+    const size_t cap = static_cast<size_t>(std::max(config_.max_ends_per_track, 1));
+    if (a_observed && t.ends_lo.size() < cap) t.ends_lo.push_back(ta);
+    if (b_observed && t.ends_hi.size() < cap) t.ends_hi.push_back(tb);
     return true;
   }
   if (static_cast<int>(tracks_.size()) >= config_.max_tracks) return false;

@@ -38,6 +38,21 @@ TEST(SeamFusion, GivenViewsOfOneSeamThenItsLineAndItsSeenEndsAreFusedAndCutEndsO
   EXPECT_NEAR(hi.z(), 0.86, 1e-3);
 }
 
+// A robot's fusion lives for the whole run: each end keeps at most max_ends_per_track seen ends, the
+// first ones, and its median is theirs.
+TEST(SeamFusion, GivenMoreSeenEndsThanItKeepsThenTheMedianIsOfTheFirstOnes) {
+  SeamFusionConfig c;
+  c.max_ends_per_track = 3;
+  SeamFusion f(c);
+  for (double x0 : {0.000, 0.001, 0.002, 0.050, 0.050, 0.050, 0.050})
+    EXPECT_TRUE(f.add(seen({x0, 0, 0}, {0.6, 0, 0})));
+  const std::vector<FusedSeam> fused = f.fused();
+  ASSERT_EQ(fused.size(), 1u);
+  EXPECT_EQ(fused[0].detections, 7);
+  const double lo = std::min(fused[0].seam.a.x(), fused[0].seam.b.x());
+  EXPECT_NEAR(lo, 0.001, 2e-3);  // all seven would give 0.050
+}
+
 TEST(SeamFusion, GivenASeamWhoseEndNoViewSawThenThatEndIsTheExtentAndUnknown) {
   SeamFusion f;
   EXPECT_TRUE(f.add(seen({0, 0, 0}, {0.5, 0, 0}, true, false)));

@@ -20,6 +20,9 @@ struct SeamFusionConfig {
   SeamMatchConfig match;
   int min_detections = 2;  // a seam seen once is not reported
   int max_tracks = 256;
+  // Seen ends kept per end of a track (the medians are of the first ones): bounded memory however long
+  // the robot runs (at most max_tracks * 2 * this doubles).
+  int max_ends_per_track = 1024;
 };
 
 struct FusedSeam {
