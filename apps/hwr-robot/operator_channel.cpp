@@ -287,14 +287,14 @@ void OperatorChannel::post(const detect::LedgerEntry& e) {
   }
   d.box_q_world_box[0] = q.w(), d.box_q_world_box[1] = q.x();
   d.box_q_world_box[2] = q.y(), d.box_q_world_box[3] = q.z();
-  // Two rows of three, allocated once (seam_rows_); the message's vector is swapped in and back.
+  // Operator-paced (a changed entry, the whole list every 5 s): the message is copied into the
+  // streamer's queue anyway, so its rows are simply rebuilt.
   d.num_seam_points = e.has_seam ? 2 : 0;
-  d.seam_world_m.swap(e.has_seam ? seam_rows_ : no_seam_rows_);
+  d.seam_world_m.assign(static_cast<size_t>(d.num_seam_points), std::vector<double>(3, 0.0));
   for (int k = 0; k < d.num_seam_points; ++k)
     for (int c = 0; c < 3; ++c)
       d.seam_world_m[static_cast<size_t>(k)][c] = e.seam_map[static_cast<size_t>(k)][c];
   streamer_->post_detection(d);
-  d.seam_world_m.swap(e.has_seam ? seam_rows_ : no_seam_rows_);
   ++counters_.published;
 }
 

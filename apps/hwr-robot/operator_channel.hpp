@@ -80,7 +80,6 @@ class OperatorChannel {
   OperatorChannelCounters counters_;
   hwr_lcm::operator_command_t command_;
   hwr_lcm::detection_t detection_;
-  std::vector<std::vector<double>> seam_rows_{2, std::vector<double>(3, 0.0)}, no_seam_rows_;
   std::vector<int64_t> ids_;
   std::vector<detect::CommandOutcome> acks_;  // this step's outcomes, acknowledged after the save
   bool unsaved_ = false;                      // the last save failed
