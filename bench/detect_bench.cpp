@@ -14,6 +14,8 @@
 // detection of the sequence goes to a SeamFusion (detect/seam_fusion.hpp); its fused seams are
 // matched to the seams seen in at least one frame, a true end known when some frame saw it. The recall
 // of each kind (seam_recall_fillet=, seam_recall_butt=) is printed beside the recall over all seams.
+// For a reader, each fused seam that matches no true one and each true seam seen but not found (with
+// the keyframes that saw and matched it) is printed in the world frame.
 
 #include "bench_command.hpp"
 
@@ -206,6 +208,9 @@ int run_detect(int argc, char** argv) {
     // Per true seam: seen in some frame, and each end seen.
     std::vector<detect::SeamSegment> seen_truths = truths;
     std::vector<char> seen(truths.size(), 0);
+    // Per true seam: keyframes that see it, and those where a detection matches it.
+    std::vector<int> frames_in_view(truths.size(), 0), frames_matched(truths.size(), 0);
+    std::vector<size_t> visible_truth;
     for (detect::SeamSegment& st : seen_truths) st.end_known = {false, false};
     for (size_t i = 0; i < seq->log.frame_t_ns.size(); i += static_cast<size_t>(step)) {
       const core::Status loaded = seq->log.load_frame(i, &frame);
@@ -230,12 +235,15 @@ int run_detect(int argc, char** argv) {
         return 1;
       }
       visible.clear();
+      visible_truth.clear();
       for (size_t k = 0; k < truths.size(); ++k) {
         detect::SeamSegment part;
         if (!detect::visible_seam_part(truths[k], T_world_cam, K, frame.depth_m, config.noise,
                                        config.cloud.min_depth_m, max_range_m, 0.1, &part))
           continue;
         visible.push_back(part);
+        visible_truth.push_back(k);
+        ++frames_in_view[k];
         seen[k] = 1;
         for (int e = 0; e < 2; ++e)
           seen_truths[k].end_known[e] = seen_truths[k].end_known[e] || part.end_known[e];
@@ -250,6 +258,7 @@ int run_detect(int argc, char** argv) {
       t.matched += score.matched;
       for (const detect::SeamSegment& v : visible) ++t.truths[static_cast<int>(v.kind)];
       for (const detect::SeamMatch& m : score.matches) {
+        ++frames_matched[visible_truth[static_cast<size_t>(m.truth)]];
         ++t.truths_matched[static_cast<int>(visible[static_cast<size_t>(m.truth)].kind)];
         t.lateral_mm.push_back(1e3 * m.lateral_m);
         for (int e = 0; e < 2; ++e)
@@ -260,9 +269,26 @@ int run_detect(int argc, char** argv) {
       std::vector<detect::SeamSegment> fused_seams, seen_list;
       const std::vector<detect::FusedSeam> fused_all = fusion.fused();
       for (const detect::FusedSeam& f : fused_all) fused_seams.push_back(f.seam);
-      for (size_t k = 0; k < truths.size(); ++k)
-        if (seen[k]) seen_list.push_back(seen_truths[k]);
+      std::vector<size_t> seen_index;
+      for (size_t k = 0; k < truths.size(); ++k) {
+        if (!seen[k]) continue;
+        seen_list.push_back(seen_truths[k]);
+        seen_index.push_back(k);
+      }
       const detect::SeamScore fs = detect::score_seams(fused_seams, seen_list);
+      // The true seams seen but not found once fused, with how often a keyframe found them.
+      std::vector<bool> truth_found(seen_list.size(), false);
+      for (const detect::SeamMatch& m : fs.matches) truth_found[static_cast<size_t>(m.truth)] = true;
+      for (size_t j = 0; j < seen_list.size(); ++j) {
+        if (truth_found[j]) continue;
+        const size_t k = seen_index[j];
+        const detect::SeamSegment& v = truths[k];
+        std::printf(
+            "%s: true %s seam not found: (%.3f, %.3f, %.3f) -> (%.3f, %.3f, %.3f) m, matched in %d of the %d "
+            "keyframes that see it\n",
+            name.c_str(), detect::seam_kind_name(v.kind), v.a.x(), v.a.y(), v.a.z(), v.b.x(), v.b.y(),
+            v.b.z(), frames_matched[k], frames_in_view[k]);
+      }
       t.fused = fs.detections;
       t.fused_matched = fs.matched;
       for (const detect::SeamSegment& v : seen_list) ++t.seen[static_cast<int>(v.kind)];
