@@ -26,8 +26,20 @@ if ! dpkg --print-foreign-architectures | grep -qx arm64; then
   $SUDO apt-get update -q
 fi
 
+# dpkg-deb -x runs no maintainer scripts, so the update-alternatives links that libblas3 and
+# liblapack3 register (libblas.so.3, liblapack.so.3 in the multiarch folder; OpenCV core needs them)
+# are made here. Idempotent.
+link_alternatives() {
+  local lib_dir="$sysroot/usr/lib/aarch64-linux-gnu" alt
+  for alt in "$lib_dir"/blas/libblas.so.3 "$lib_dir"/lapack/liblapack.so.3; do
+    [[ -e "$alt" ]] || continue
+    [[ -e "$lib_dir/$(basename "$alt")" ]] || ln -sfn "${alt#"$lib_dir"/}" "$lib_dir/$(basename "$alt")"
+  done
+}
+
 stamp="$sysroot/.hwr-sysroot-packages"
 if [[ -f "$stamp" && "$(cat "$stamp")" == "${packages[*]}" ]]; then
+  link_alternatives
   echo "make-agx-sysroot: $sysroot is up to date"
   exit 0
 fi
@@ -56,5 +68,6 @@ find "$sysroot" -type l -lname '/*' | while read -r link; do
   target=$(readlink "$link")
   ln -sfn "$sysroot$target" "$link"
 done
+link_alternatives
 echo "${packages[*]}" > "$stamp"
 echo "make-agx-sysroot: unpacked $count packages into $sysroot"

@@ -6,6 +6,7 @@
 #include <array>
 #include <cmath>
 #include <cstddef>
+#include <cstdint>
 #include <limits>
 #include <mutex>
 #include <string>
@@ -19,7 +20,8 @@
 namespace hwr::recon {
 namespace {
 
-// Embree wants flush-to-zero and denormals-are-zero while it traverses; set them for one call.
+// Embree wants flush-to-zero and denormals-are-zero while it traverses; set them for one call
+// (x86: MXCSR FTZ | DAZ; aarch64: FPCR.FZ, bit 24, which flushes both inputs and results).
 class ScopedFlushDenormals {
  public:
 #if defined(__SSE__)
@@ -28,6 +30,18 @@ class ScopedFlushDenormals {
 
  private:
   unsigned saved_;
+#elif defined(__aarch64__)
+  ScopedFlushDenormals() {
+    asm volatile("mrs %0, fpcr" : "=r"(saved_));
+    const uint64_t fz = saved_ | (uint64_t{1} << 24);
+    asm volatile("msr fpcr, %0" : : "r"(fz));
+  }
+  ~ScopedFlushDenormals() { asm volatile("msr fpcr, %0" : : "r"(saved_)); }
+
+ private:
+  uint64_t saved_ = 0;
+#else
+  ScopedFlushDenormals() {}  // no control register known: Embree runs with the default mode
 #endif
 };
 

@@ -18,6 +18,8 @@
 #include <cstring>
 #include <string>
 
+#include "cross_run.hpp"
+
 namespace hwr::test {
 
 // True inside the namespace child; it also leaves the marker file the parent checks, so a filter
@@ -72,8 +74,9 @@ inline int rerun_in_private_netns(const std::string& test_full_name, std::string
   const std::string marker = "/tmp/hwr_netns_marker_" + std::to_string(getpid());
   const std::string log = "/tmp/hwr_netns_log_" + std::to_string(getpid());
   std::remove(marker.c_str());
-  const std::string cmd = "HWR_IN_PRIVATE_NETNS=1 HWR_NETNS_MARKER='" + marker + "' unshare -rn '" +
-                          self_exe() + "' --gtest_filter='" + test_full_name + "' >'" + log + "' 2>&1";
+  const std::string cmd = "HWR_IN_PRIVATE_NETNS=1 HWR_NETNS_MARKER='" + marker + "' unshare -rn " +
+                          emulated_command("'" + self_exe() + "'") + " --gtest_filter='" + test_full_name +
+                          "' >'" + log + "' 2>&1";
   const int st = std::system(cmd.c_str());
   if (FILE* f = std::fopen(log.c_str(), "r")) {
     char buf[4096];

@@ -26,6 +26,7 @@
 #include "operator_fakes.hpp"
 #include "private_netns.hpp"
 #include "temp_dir.hpp"
+#include "cross_run.hpp"
 
 namespace hwr::mapio {
 namespace {
@@ -68,7 +69,8 @@ TEST(HwrGroundOperator, GivenBadInputLinesThenEachReportedWithItsNumberAndSkippe
              "--robot hwr-0 add 1732477000100000000 10 20 30 40");  // 14: sent (no newline at the end)
   const std::string args =
       "--out " + tmp.file("out") + " --link memq:// --status-interval 0 --exit-after-idle 0.5";
-  const auto r = hwr::testing::run_cli(kGround, args + " --operator-input " + in);
+  const auto r =
+      hwr::testing::run_cli(hwr::test::emulated_command(kGround), args + " --operator-input " + in);
   ASSERT_EQ(r.exit_code, 0) << r.out;
   const std::string at = in + " line ";
   EXPECT_TRUE(has(r.out, at + "3: no robot has sent detections yet")) << r.out;
@@ -94,12 +96,15 @@ TEST(HwrGroundOperator, GivenBadInputLinesThenEachReportedWithItsNumberAndSkippe
   EXPECT_EQ(kv.at("ground_rejected"), "0") << r.out;  // the map link is unaffected
 
   // Nothing acknowledged them: a restart on the same folder says so and sends them again.
-  const auto again = hwr::testing::run_cli(kGround, args);
+  const auto again = hwr::testing::run_cli(hwr::test::emulated_command(kGround), args);
   ASSERT_EQ(again.exit_code, 0) << again.out;
   EXPECT_TRUE(has(again.out, "3 operator commands still pending from before")) << again.out;
 
-  EXPECT_EQ(hwr::testing::run_cli(kGround, args + " --operator-robot ../x").exit_code, 2);
-  const auto missing = hwr::testing::run_cli(kGround, args + " --operator-input " + tmp.file("none.txt"));
+  EXPECT_EQ(
+      hwr::testing::run_cli(hwr::test::emulated_command(kGround), args + " --operator-robot ../x").exit_code,
+      2);
+  const auto missing = hwr::testing::run_cli(hwr::test::emulated_command(kGround),
+                                             args + " --operator-input " + tmp.file("none.txt"));
   EXPECT_EQ(missing.exit_code, 1);
   EXPECT_TRUE(has(missing.out, "none.txt: cannot open operator input")) << missing.out;
 }
@@ -112,6 +117,7 @@ const char* kUrl = "udpm://239.255.76.67:7667?ttl=0&recv_buf_size=8388608";
 pid_t start_ground(const std::string& out, const std::string& log, const std::vector<std::string>& extra) {
   std::vector<std::string> args = {kGround, "--out", out, "--link", kUrl, "--status-interval", "0"};
   args.insert(args.end(), extra.begin(), extra.end());
+  args = hwr::test::emulated_argv(args);  // qemu-aarch64 in front in the cross build's tests
   std::vector<char*> argv;
   for (auto& a : args) argv.push_back(a.data());
   argv.push_back(nullptr);
@@ -120,7 +126,7 @@ pid_t start_ground(const std::string& out, const std::string& log, const std::ve
   posix_spawn_file_actions_init(&fa);
   posix_spawn_file_actions_addopen(&fa, 1, log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
   posix_spawn_file_actions_adddup2(&fa, 1, 2);
-  const int rc = posix_spawn(&pid, kGround.c_str(), &fa, nullptr, argv.data(), environ);
+  const int rc = posix_spawn(&pid, args[0].c_str(), &fa, nullptr, argv.data(), environ);
   posix_spawn_file_actions_destroy(&fa);
   return rc == 0 ? pid : -1;
 }

@@ -31,6 +31,7 @@
 #include "hwr_lcm/pose_t.hpp"
 #include "hwr_lcm/status_t.hpp"
 #include "private_netns.hpp"
+#include "cross_run.hpp"
 
 extern char** environ;
 
@@ -43,6 +44,7 @@ const std::string kGround = HWR_BINARY_DIR "/apps/hwr-ground/hwr-ground";
 
 pid_t start_ground(const std::string& out) {
   std::vector<std::string> args = {kGround, "--out", out, "--link", kUrl, "--status-interval", "0"};
+  args = hwr::test::emulated_argv(args);  // qemu-aarch64 in front in the cross build's tests
   std::vector<char*> argv;
   for (auto& a : args) argv.push_back(a.data());
   argv.push_back(nullptr);
@@ -51,7 +53,7 @@ pid_t start_ground(const std::string& out) {
   posix_spawn_file_actions_init(&fa);
   posix_spawn_file_actions_addopen(&fa, 1, "/dev/null", O_WRONLY, 0);
   posix_spawn_file_actions_addopen(&fa, 2, "/dev/null", O_WRONLY, 0);
-  const int rc = posix_spawn(&pid, kGround.c_str(), &fa, nullptr, argv.data(), environ);
+  const int rc = posix_spawn(&pid, args[0].c_str(), &fa, nullptr, argv.data(), environ);
   posix_spawn_file_actions_destroy(&fa);
   return rc == 0 ? pid : -1;
 }
