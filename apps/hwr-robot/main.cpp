@@ -8,10 +8,12 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cinttypes>
 #include <cstddef>
 #include <cmath>
+#include <csignal>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -32,6 +34,7 @@
 #include "hwr/estimation/local_bundle_adjustment.hpp"
 #include "hwr/estimation/pose_estimator.hpp"
 #include "hwr/hal/fault_injection.hpp"
+#include "hwr/hal/hw/hw_source.hpp"
 #include "hwr/hal/replay_source.hpp"
 #include "hwr/hal/stream_health.hpp"
 #include "hwr/mapio/map_streamer.hpp"
@@ -100,7 +103,9 @@ void usage() {
       "                 [--map-out DIR] [--cloud-out FILE] [--link URL [--robot-id ID] [--link-wait S]]\n"
       "                 [--prior-map DIR] [--regions truth|geometry|onnx:MODEL|tensorrt:ENGINE]\n"
       "  KIND:WHAT  sim:NAME|FILE.yaml (the simulator renders live), sim:DIR (a run written by hwr-sim),\n"
-      "             tum:DIR (TUM RGB-D folder), euroc:DIR (EuRoC folder or mav0)\n"
+      "             tum:DIR (TUM RGB-D folder), euroc:DIR (EuRoC folder or mav0),\n"
+      "             hw:CONFIG (the live sensors, config/hw.yaml; paced at real time; Ctrl-C ends the run;\n"
+      "             docs/hardware.md)\n"
       "  --config FILE      settings (YAML, sections estimation: and map:; config/estimation.yaml and\n"
       "                     config/map.yaml list them)\n"
       "  --traj-out FILE    camera poses T_world_cam at every tracked image time (TUM format)\n"
@@ -124,8 +129,8 @@ void usage() {
       "                     as welding-region detections: the map keeps a fine cloud inside them, placed\n"
       "                     with the keyframe's estimated pose (a perfect detector; docs/reconstruction.md)\n"
       "  --regions geometry the geometric seam detector (detect/, any source with depth):\n"
-      "                     fillet joints found on each keyframe's depth image, placed with its\n"
-      "                     estimated pose (docs/detection.md)\n"
+      "                     fillet and butt joints found on each keyframe's depth and colour images,\n"
+      "                     placed with its estimated pose (docs/detection.md)\n"
       "  --regions onnx:MODEL      a learned detector (ONNX through OpenCV DNN: YOLOv10 [1,N,6] or\n"
       "  --regions tensorrt:ENGINE [1,4+C,N] heads; TensorRT when built with it); a missing, corrupt or\n"
       "                     incompatible model is said and the geometric seam detector is used instead\n"
@@ -194,11 +199,16 @@ struct Robot {
   bool quiet = false;
 };
 
+// SIGINT / SIGTERM: the hal task stops the scheduler and the run ends as a replay's end does (the
+// last keyframes are mapped, stores and the detection list written, the link drained).
+std::atomic<bool> g_stop_requested{false};
+void on_stop_signal(int) { g_stop_requested.store(true); }
+
 void hal_task(void* ctx, int64_t now_ns) {
   auto* r = static_cast<Robot*>(ctx);
   if (!r->error.ok()) return;
   r->error = r->source->poll(now_ns, r->streams);
-  if (!r->error.ok() || r->source->finished()) r->scheduler->request_stop();
+  if (!r->error.ok() || r->source->finished() || g_stop_requested.load()) r->scheduler->request_stop();
 }
 
 void inertial_task(void* ctx, int64_t now_ns) {
@@ -715,15 +725,38 @@ hwr::core::Status write_relocalization_yaml(const std::string& map_dir, const st
   return hwr::core::write_file_atomic(map_dir + "/relocalization.yaml", y);
 }
 
-int run(const Args& args) {
-  auto opened = open_source(args.source);
+int run(Args args) {
+  // hw:CONFIG: the live sensors (hal/hw, docs/hardware.md). Their timeline is CLOCK_MONOTONIC, so the
+  // scheduler runs paced (as with --realtime) from now.
+  const bool live = args.source.rfind("hw:", 0) == 0;
+  if (live) args.realtime = true;
+  auto opened = live ? hwr::core::Expected<OpenedSource>(OpenedSource{}) : open_source(args.source);
   if (!opened.ok()) {
     std::fprintf(stderr, "hwr-robot: %s\n", opened.status().message().c_str());
     return 1;
   }
   hwr::hal::ReplayLog log = std::move(opened->log);
   std::shared_ptr<hwr::hal::FaultReport> fault_report;
-  if (!args.faults.empty()) {
+  std::unique_ptr<hwr::hal::hw::HwSource> hw;
+  if (live) {
+    if (!args.faults.empty()) {
+      std::fprintf(stderr, "hwr-robot: --faults applies to replayed sources, not to hw:\n");
+      return 2;
+    }
+    auto hw_cfg = hwr::hal::hw::load_hw_config(args.source.substr(3));
+    if (!hw_cfg.ok()) {
+      std::fprintf(stderr, "hwr-robot: %s\n", hw_cfg.status().message().c_str());
+      return 1;
+    }
+    auto opened_hw =
+        hwr::hal::hw::HwSource::open(hw_cfg.value(), args.source, hwr::core::MonotonicClock().now_ns());
+    if (!opened_hw.ok()) {
+      std::fprintf(stderr, "hwr-robot: %s\n", opened_hw.status().message().c_str());
+      return 1;
+    }
+    hw = std::move(opened_hw.value());
+    log.info = hw->info();
+  } else if (!args.faults.empty()) {
     auto spec = hwr::hal::parse_fault_spec(args.faults);
     if (!spec.ok()) {
       std::fprintf(stderr, "hwr-robot: --faults: %s\n", spec.status().message().c_str());
@@ -746,11 +779,23 @@ int run(const Args& args) {
   cfg.height = info.intrinsics.height;
   cfg.stereo = info.stereo;
   hwr::hal::SensorStreams streams(cfg);
-  auto source = hwr::hal::ReplaySource::create(std::move(log), &streams);
-  if (!source.ok()) {
-    std::fprintf(stderr, "hwr-robot: %s\n", source.status().message().c_str());
-    return 1;
+  std::unique_ptr<hwr::hal::SensorSource> source;
+  if (live) {
+    if (hwr::core::Status hs = hw->start(&streams); !hs.ok()) {
+      std::fprintf(stderr, "hwr-robot: %s\n", hs.message().c_str());
+      return 1;
+    }
+    source = std::move(hw);
+  } else {
+    auto replay = hwr::hal::ReplaySource::create(std::move(log), &streams);
+    if (!replay.ok()) {
+      std::fprintf(stderr, "hwr-robot: %s\n", replay.status().message().c_str());
+      return 1;
+    }
+    source = std::move(replay.value());
   }
+  std::signal(SIGINT, on_stop_signal);  // Ctrl-C / systemctl stop: end the run cleanly
+  std::signal(SIGTERM, on_stop_signal);
 
   hwr::estimation::PoseEstimatorConfig est_cfg;
   hwr::recon::LocalMapperConfig map_cfg;
@@ -909,7 +954,7 @@ int run(const Args& args) {
   robot.prior_frames = &prior_frames;
   robot.T_cam_imu = info.T_imu_cam.inverse();
   robot.antenna_imu_m = info.gnss_antenna_imu_m;
-  robot.source = source->get();
+  robot.source = source.get();
   robot.scheduler = &sched;
   robot.estimator = estimator.get();
   robot.mapper = &mapper.value();
@@ -1068,7 +1113,7 @@ int run(const Args& args) {
 
   char table[4096];
   sched.format_telemetry(table, sizeof(table));
-  const hwr::hal::SourceCounters c = source.value()->counters();
+  const hwr::hal::SourceCounters c = source->counters();
   const auto& ih = robot.imu.health();
   const auto& ch = robot.camera.health();
   std::printf("scheduler telemetry (simulated %.2f s in %.2f s wall):\n%s",
