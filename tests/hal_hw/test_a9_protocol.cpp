@@ -15,6 +15,8 @@
 
 #include <Eigen/LU>  // determinant
 
+#include "a9_frames.hpp"
+
 namespace hwr::hal::hw {
 namespace {
 
@@ -32,45 +34,13 @@ const Bytes kVendorImu = from_hex(
     "aa552c29ec41004029706b9d66383a508faab9da33c0b9a6e74d3c0267b9bb030480bf25bfac3d4fd40fbdcd4c4a3f5dfb");
 const Bytes kVendorAttitude = from_hex("aa551423e04800ac9a1e83839a1c3f6b100341568d29c1170e");
 
-// Oracle CRC, bit by bit from the definition (independent of crc16_modbus's table).
-uint16_t crc_bitwise(const uint8_t* d, size_t n) {
-  uint16_t crc = 0xFFFF;
-  for (size_t i = 0; i < n; ++i) {
-    crc ^= d[i];
-    for (int b = 0; b < 8; ++b) crc = (crc & 1) != 0 ? static_cast<uint16_t>((crc >> 1) ^ 0xA001) : crc >> 1;
-  }
-  return crc;
-}
-
-void put_u32(Bytes* b, uint32_t v) {
-  for (int i = 0; i < 4; ++i) b->push_back(static_cast<uint8_t>(v >> (8 * i)));
-}
-void put_f32(Bytes* b, float f) {
-  uint32_t u;
-  std::memcpy(&u, &f, 4);
-  put_u32(b, u);
-}
-void seal(Bytes* f) {
-  const uint16_t crc = crc_bitwise(f->data() + 2, f->size() - 2);
-  f->push_back(static_cast<uint8_t>(crc & 0xFF));
-  f->push_back(static_cast<uint8_t>(crc >> 8));
-}
-
+using test::put_f32;
+using test::put_u32;
 Bytes make_imu_frame(uint32_t t_us, Eigen::Vector3f gyro, Eigen::Vector3f accel, Eigen::Vector3f mag) {
-  Bytes f = {0xAA, 0x55, 0x2C, 0x29, 0xEC, 0x41, 0x00};
-  put_u32(&f, t_us);
-  for (const Eigen::Vector3f* v : {&gyro, &accel, &mag})
-    for (int i = 0; i < 3; ++i) put_f32(&f, (*v)[i]);
-  seal(&f);
-  return f;
+  return test::make_a9_imu_frame(t_us, gyro, accel, mag);
 }
-
 Bytes make_attitude_frame(uint32_t t_us, Eigen::Vector3f rpy) {
-  Bytes f = {0xAA, 0x55, 0x14, 0x23, 0xE0, 0x48, 0x00};
-  put_u32(&f, t_us);
-  for (int i = 0; i < 3; ++i) put_f32(&f, rpy[i]);
-  seal(&f);
-  return f;
+  return test::make_a9_attitude_frame(t_us, rpy);
 }
 
 // A few distinct frames of both types.

@@ -9,32 +9,16 @@
 #include <memory>
 #include <vector>
 
+#include "a9_frames.hpp"
 #include "fake_byte_stream.hpp"
-#include "hwr/hal/hw/crc16_modbus.hpp"
 
 namespace hwr::hal::hw {
 namespace {
 
 using Bytes = std::vector<uint8_t>;
 
-void put_u32(Bytes* b, uint32_t v) {
-  for (int i = 0; i < 4; ++i) b->push_back(static_cast<uint8_t>(v >> (8 * i)));
-}
-void put_f32(Bytes* b, float f) {
-  uint32_t u;
-  std::memcpy(&u, &f, 4);
-  put_u32(b, u);
-}
-
-// hardware.md: AA 55 | LEN | INFO[4] | t_us | 9 floats | CRC-16/MODBUS (low byte first).
 Bytes imu_frame(uint32_t t_us, float accel_z_g) {
-  Bytes f = {0xAA, 0x55, 0x2C, 0x29, 0xEC, 0x41, 0x00};
-  put_u32(&f, t_us);
-  for (float v : {0.01f, 0.02f, 0.03f, 0.0f, 0.0f, accel_z_g, 0.3f, 0.0f, 0.4f}) put_f32(&f, v);
-  const uint16_t crc = crc16_modbus(f.data() + 2, f.size() - 2);
-  f.push_back(static_cast<uint8_t>(crc & 0xFF));
-  f.push_back(static_cast<uint8_t>(crc >> 8));
-  return f;
+  return test::make_a9_imu_frame(t_us, {0.01f, 0.02f, 0.03f}, {0.0f, 0.0f, accel_z_g}, {0.3f, 0.0f, 0.4f});
 }
 
 struct Rig {

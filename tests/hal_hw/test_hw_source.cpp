@@ -15,7 +15,7 @@
 #include <fcntl.h>
 #include <unistd.h>
 
-#include "hwr/hal/hw/crc16_modbus.hpp"
+#include "a9_frames.hpp"
 #include "hwr/hal/hw/ubx_protocol.hpp"
 
 namespace hwr::hal::hw {
@@ -41,17 +41,7 @@ struct Pty {
 };
 
 Bytes a9_imu_frame(uint32_t t_us) {
-  Bytes f = {0xAA, 0x55, 0x2C, 0x29, 0xEC, 0x41, 0x00};
-  for (int i = 0; i < 4; ++i) f.push_back(static_cast<uint8_t>(t_us >> (8 * i)));
-  for (float v : {0.0f, 0.0f, 0.5f, 0.0f, 0.0f, -1.0f, 0.0f, 0.0f, 0.0f}) {
-    uint8_t b[4];
-    std::memcpy(b, &v, 4);
-    f.insert(f.end(), b, b + 4);
-  }
-  const uint16_t crc = crc16_modbus(f.data() + 2, f.size() - 2);
-  f.push_back(static_cast<uint8_t>(crc & 0xFF));
-  f.push_back(static_cast<uint8_t>(crc >> 8));
-  return f;
+  return test::make_a9_imu_frame(t_us, {0, 0, 0.5f}, {0, 0, -1.0f}, {0, 0, 0});
 }
 
 int64_t now_ns() {
