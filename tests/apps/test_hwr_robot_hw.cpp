@@ -38,9 +38,7 @@ TEST(HwrRobotHw, GivenTheTemplateThenTheZedImuIsSaidToBeNotWiredYet) {
 
 TEST(HwrRobotHw, GivenEachMissingDeviceThenItsLine) {
   hwr::testing::TempDir tmp("hwr_robot_hw");
-  {
-    std::ofstream(tmp.file("SN1.conf")) << kConf;
-  }
+  { std::ofstream(tmp.file("SN1.conf")) << kConf; }
   const std::string base = "imu: a9\nzed_sensors: {enabled: false}\nsysfs_root: " + tmp.path() +
                            "\na9: {enabled: true, device: " + tmp.file("no-a9") + "}\n";
   // No calibration file.
