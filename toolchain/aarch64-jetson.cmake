@@ -12,6 +12,8 @@ set(CMAKE_SYSTEM_PROCESSOR aarch64)
 set(HWR_AGX_CPU "orin" CACHE STRING "Jetson CPU: orin or xavier")
 set_property(CACHE HWR_AGX_CPU PROPERTY STRINGS orin xavier)
 set(HWR_SYSROOT "${CMAKE_CURRENT_LIST_DIR}/../build/agx-sysroot" CACHE PATH "aarch64 sysroot")
+# try_compile projects (compiler checks) read this file again: hand them the same choices.
+list(APPEND CMAKE_TRY_COMPILE_PLATFORM_VARIABLES HWR_SYSROOT HWR_AGX_CPU)
 
 set(CMAKE_C_COMPILER aarch64-linux-gnu-gcc)
 set(CMAKE_CXX_COMPILER aarch64-linux-gnu-g++)
