@@ -42,7 +42,11 @@ TEST(TtyPort, GivenAPtyThenItIsRaw8N1AtTheBaudAndBytesArrive) {
   EXPECT_EQ(tio.c_lflag & (ICANON | ECHO | ISIG), 0u);
   EXPECT_EQ(tio.c_iflag & (ICRNL | IXON), 0u);
   EXPECT_EQ(tio.c_oflag & OPOST, 0u);
-  EXPECT_EQ(::cfgetispeed(&tio), static_cast<speed_t>(B921600));
+  // qemu-user's termios translation (the agx preset's tests) does not carry the rate back: checked
+  // only where the test runs natively.
+  if (std::string(HWR_TEST_EMULATOR).empty()) {
+    EXPECT_EQ(::cfgetispeed(&tio), static_cast<speed_t>(B921600));
+  }
 
   const uint8_t frame[] = {0xAA, 0x55, 0x0D, 0x0A, 0x11, 0x13, 0x00};  // CR LF XON XOFF pass untouched
   ASSERT_EQ(::write(pty.master, frame, sizeof frame), static_cast<ssize_t>(sizeof frame));
