@@ -939,7 +939,9 @@ int run(Args args) {
                  static_cast<long long>(run_id), args.link.c_str());
   }
 
-  const int64_t t0 = info.first_t_ns;
+  // A live source's timeline is CLOCK_MONOTONIC itself: the scheduler starts at the present, not at
+  // the source's opening (set-up since then may have taken seconds).
+  const int64_t t0 = live ? hwr::core::MonotonicClock().now_ns() : info.first_t_ns;
   hwr::core::SimClock sim_clock(t0);
   PacedClock paced_clock(t0);
   hwr::core::MonotonicClock exec_clock;
@@ -1047,9 +1049,12 @@ int run(Args args) {
   sched.bind(kTelemetry, telemetry_task, &robot);
   sched.start(t0);
 
-  std::fprintf(stderr, "hwr-robot: source %s: %.1f s, %s%s%s%s\n", info.name.c_str(),
-               hwr::core::ns_to_s(info.last_t_ns - info.first_t_ns), "camera", info.has_imu ? " + imu" : "",
-               info.has_mag ? " + magnetometer" : "", info.has_gnss ? " + gnss" : "");
+  char span[32] = "live";
+  if (!live)
+    std::snprintf(span, sizeof(span), "%.1f s", hwr::core::ns_to_s(info.last_t_ns - info.first_t_ns));
+  std::fprintf(stderr, "hwr-robot: source %s: %s, %s%s%s%s\n", info.name.c_str(), span, "camera",
+               info.has_imu ? " + imu" : "", info.has_mag ? " + magnetometer" : "",
+               info.has_gnss ? " + gnss" : "");
   const int64_t end = args.duration_s > 0 ? t0 + hwr::core::s_to_ns(args.duration_s)
                                           : info.last_t_ns + hwr::core::kNsPerS / 10;
   const int64_t wall0 = exec_clock.now_ns();
