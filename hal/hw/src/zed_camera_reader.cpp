@@ -1,8 +1,7 @@
 #include "hwr/hal/hw/zed_camera_reader.hpp"
 
-#include <opencv2/imgproc.hpp>
-
 #include "hwr/core/log.hpp"
+#include "hwr/hal/hw/side_by_side.hpp"
 #include "hwr/hal/hw/zed_calibration.hpp"
 
 namespace hwr::hal::hw {
@@ -79,13 +78,16 @@ core::Status ZedCameraReader::step(int64_t now_ns, SensorStreams* streams, int t
   }
   if (!got.value()) return core::Status::Ok();  // nothing within the timeout
   const V4l2Frame f = *got.value();
-  const int w = config_.camera.eye_width;
-  // The kernel buffer as an image of YUYV pairs (CV_8UC2: Y and U or V per pixel); each eye's half
-  // starts on a pair boundary since the eye width is even.
-  const cv::Mat yuyv(f.height, f.width, CV_8UC2, const_cast<uint8_t*>(f.data), f.stride_bytes);
-  cv::cvtColor(yuyv.colRange(0, w), left_gray_, cv::COLOR_YUV2GRAY_YUYV);
-  cv::cvtColor(yuyv.colRange(w, 2 * w), right_gray_, cv::COLOR_YUV2GRAY_YUYV);
+  // Both eyes' gray halves, converted straight from the kernel buffer (side_by_side.hpp).
+  YuyvFrameView view;
+  view.data = f.data;
+  view.size_bytes = f.bytes;
+  view.width_px = f.width;
+  view.height_px = f.height;
+  view.stride_bytes = f.stride_bytes;
+  const core::Status split = split_side_by_side_yuyv(view, &left_gray_, &right_gray_, nullptr);
   if (core::Status st = capture_->requeue(f); !st.ok()) return st;  // the halves are copied out
+  if (!split.ok()) return split;                                    // sized at open: a bug or a mode change
 
   RgbdFrame* out = spare_ != nullptr ? spare_ : streams->frame_pool.acquire();
   spare_ = nullptr;
