@@ -103,6 +103,25 @@ core::Expected<StereoDepth> StereoDepth::create(const StereoRig& rig, const Ster
 
 core::Status StereoDepth::compute(const cv::Mat& left_gray, const cv::Mat& right_gray, int64_t t_ns,
                                   uint64_t seq, RgbdFrame* out) {
+  return compute_impl(left_gray, right_gray, nullptr, t_ns, seq, out);
+}
+
+core::Status StereoDepth::compute(const cv::Mat& left_gray, const cv::Mat& right_gray,
+                                  const cv::Mat& left_bgr, int64_t t_ns, uint64_t seq, RgbdFrame* out) {
+  if (left_bgr.cols != rect_.width || left_bgr.rows != rect_.height || left_bgr.type() != CV_8UC3) {
+    return core::InvalidArgument("StereoDepth: left colour image is " +
+                                 size_text(left_bgr.cols, left_bgr.rows) + " type " +
+                                 std::to_string(left_bgr.type()) + ", expected " +
+                                 size_text(rect_.width, rect_.height) + " 8-bit BGR (CV_8UC3)");
+  }
+  if (left_bgr.data == out->bgr.data) {  // cv::remap cannot work in place
+    return core::InvalidArgument("StereoDepth: the left colour image is the output frame's bgr");
+  }
+  return compute_impl(left_gray, right_gray, &left_bgr, t_ns, seq, out);
+}
+
+core::Status StereoDepth::compute_impl(const cv::Mat& left_gray, const cv::Mat& right_gray,
+                                       const cv::Mat* left_bgr, int64_t t_ns, uint64_t seq, RgbdFrame* out) {
   const cv::Mat* in[2] = {&left_gray, &right_gray};
   for (int c = 0; c < 2; ++c) {
     const cv::Mat& m = *in[c];
@@ -136,7 +155,13 @@ core::Status StereoDepth::compute(const cv::Mat& left_gray, const cv::Mat& right
       }
     }
   }
-  cv::cvtColor(rect_left_, out->bgr, cv::COLOR_GRAY2BGR);
+  if (left_bgr != nullptr) {
+    // The same maps as the gray left, so colour and depth share the rectified pixel grid.
+    cv::remap(*left_bgr, out->bgr, map_left_[0], map_left_[1], cv::INTER_LINEAR, cv::BORDER_CONSTANT,
+              cv::Scalar::all(0));
+  } else {
+    cv::cvtColor(rect_left_, out->bgr, cv::COLOR_GRAY2BGR);
+  }
   out->invalid_depth_px = invalid;
   out->intrinsics = rect_;
   out->t_ns = t_ns;

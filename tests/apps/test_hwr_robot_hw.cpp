@@ -32,8 +32,8 @@ TEST(HwrRobotHw, GivenAMissingConfigThenItIsNamed) {
   expect_one_line(robot("--source hw:/nonexistent/hw.yaml"), "/nonexistent/hw.yaml: file not found");
 }
 
-TEST(HwrRobotHw, GivenTheTemplateThenTheZedImuIsSaidToBeNotWiredYet) {
-  expect_one_line(robot("--source hw:" HWR_SOURCE_DIR "/config/hw.yaml"), "imu: zed");
+TEST(HwrRobotHw, GivenTheTemplateWithoutItsCalibrationFileThenItIsNamed) {
+  expect_one_line(robot("--source hw:" HWR_SOURCE_DIR "/config/hw.yaml"), "/etc/hwr/SN12345678.conf");
 }
 
 TEST(HwrRobotHw, GivenEachMissingDeviceThenItsLine) {
@@ -51,6 +51,9 @@ TEST(HwrRobotHw, GivenEachMissingDeviceThenItsLine) {
   // A9 absent (the camera disabled so the A9 is the first device checked).
   std::ofstream(tmp.file("c.yaml")) << base << "camera: {enabled: false}\n";
   expect_one_line(robot("--source hw:" + tmp.file("c.yaml")), "a9: " + tmp.file("no-a9"));
+  // No ZED 2i sensor MCU on the USB bus (the camera disabled so the MCU is the first device checked).
+  std::ofstream(tmp.file("e.yaml")) << "imu: zed\ncamera: {enabled: false}\n";
+  expect_one_line(robot("--source hw:" + tmp.file("e.yaml")), "zed_sensors: ZED 2i sensor MCU 2b03:f881");
   // A bad key.
   std::ofstream(tmp.file("d.yaml")) << base << "camera: {calibration: x, fsp: 30}\n";
   expect_one_line(robot("--source hw:" + tmp.file("d.yaml")), "camera.fsp");

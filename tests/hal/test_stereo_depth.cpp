@@ -107,6 +107,104 @@ TEST(StereoDepth, GivenAFrontoParallelPlaneAtAKnownDisparity_WhenComputed_ThenDe
       1.0);
 }
 
+// A colour plane: random colours, blurred a little (texture for the matcher), and its gray.
+struct ColourPair {
+  cv::Mat left_bgr, right_bgr, left_gray, right_gray;
+};
+
+ColourPair colour_plane(int w, int h, int d) {
+  cv::Mat texture(h, w + d, CV_8UC3);
+  cv::RNG rng(777);
+  rng.fill(texture, cv::RNG::UNIFORM, 0, 256);
+  cv::GaussianBlur(texture, texture, cv::Size(3, 3), 0.8);
+  ColourPair p;
+  p.left_bgr = texture(cv::Rect(0, 0, w, h)).clone();
+  p.right_bgr = texture(cv::Rect(d, 0, w, h)).clone();
+  cv::cvtColor(p.left_bgr, p.left_gray, cv::COLOR_BGR2GRAY);
+  cv::cvtColor(p.right_bgr, p.right_gray, cv::COLOR_BGR2GRAY);
+  return p;
+}
+
+TEST(StereoDepth, GivenTheLeftColourImage_WhenComputed_ThenBgrIsItRectifiedAndTheDepthIsTheGrayPairs) {
+  // GIVEN the plane of the test above in colour, an ideal rig (rectification is the identity).
+  const int w = 320;
+  const int h = 240;
+  const ColourPair p = colour_plane(w, h, 20);
+  auto sd = StereoDepth::create(ideal_rig(w, h, 400, 0.1));
+  ASSERT_TRUE(sd.ok()) << sd.status().to_string();
+  RgbdFrame gray_only;
+  ASSERT_TRUE(sd->compute(p.left_gray, p.right_gray, 1, 2, &gray_only).ok());
+  // Preallocated as SensorStreams does: written in place.
+  RgbdFrame colour;
+  colour.bgr.create(h, w, CV_8UC3);
+  colour.depth_m.create(h, w, CV_32FC1);
+  colour.right_gray.create(h, w, CV_8UC1);
+  const uint8_t* bgr_buffer = colour.bgr.data;
+
+  // WHEN
+  ASSERT_TRUE(sd->compute(p.left_gray, p.right_gray, p.left_bgr, 42, 7, &colour).ok());
+
+  // THEN matching saw the same gray pair: identical depth and right image.
+  EXPECT_EQ(colour.t_ns, 42);
+  EXPECT_EQ(colour.seq, 7u);
+  EXPECT_EQ(cv::norm(colour.depth_m, gray_only.depth_m, cv::NORM_INF), 0.0);
+  EXPECT_EQ(cv::norm(colour.right_gray, gray_only.right_gray, cv::NORM_INF), 0.0);
+  EXPECT_EQ(colour.invalid_depth_px, gray_only.invalid_depth_px);
+  EXPECT_EQ(colour.intrinsics.fx, gray_only.intrinsics.fx);
+  // bgr is the colour image itself (identity rectification), not gray.
+  EXPECT_EQ(colour.bgr.data, bgr_buffer) << "no reallocation";
+  ASSERT_EQ(colour.bgr.type(), CV_8UC3);
+  const cv::Rect inner(5, 5, w - 10, h - 10);
+  EXPECT_LE(cv::norm(colour.bgr(inner), p.left_bgr(inner), cv::NORM_INF), 1.0);
+  EXPECT_GT(cv::norm(gray_only.bgr(inner), p.left_bgr(inner), cv::NORM_INF), 50.0) << "the gray path is gray";
+}
+
+TEST(StereoDepth, GivenARigThatNeedsRectifying_WhenColourIsGiven_ThenItGoesThroughTheLeftGraysMaps) {
+  // GIVEN distortion and a rotated right eye: the left rectification is not the identity.
+  const int w = 320;
+  const int h = 240;
+  StereoRig rig = ideal_rig(w, h, 400, 0.1);
+  rig.left.distortion = {-0.2, 0.05, 0.001, -0.001, 0.0};
+  rig.right.distortion = {-0.18, 0.04, 0.0, 0.0, 0.0};
+  rig.T_left_right.linear() =
+      Eigen::AngleAxisd(0.03, Eigen::Vector3d(0.2, 1.0, 0.1).normalized()).toRotationMatrix();
+  auto sd = StereoDepth::create(rig);
+  ASSERT_TRUE(sd.ok()) << sd.status().to_string();
+  ASSERT_FALSE(sd->T_cam0_rect().isApprox(Eigen::Isometry3d::Identity(), 1e-3));
+  const ColourPair p = colour_plane(w, h, 16);
+
+  RgbdFrame gray_only, colour;
+  ASSERT_TRUE(sd->compute(p.left_gray, p.right_gray, 0, 0, &gray_only).ok());
+  ASSERT_TRUE(sd->compute(p.left_gray, p.right_gray, p.left_bgr, 0, 0, &colour).ok());
+
+  // THEN the gray of the rectified colour is the rectified gray (both linear: equal up to rounding),
+  // pixel for pixel, including where the maps leave the image (0 in both).
+  cv::Mat gray_of_colour;
+  cv::cvtColor(colour.bgr, gray_of_colour, cv::COLOR_BGR2GRAY);
+  cv::Mat rect_gray;
+  cv::extractChannel(gray_only.bgr, rect_gray, 0);
+  EXPECT_LE(cv::norm(gray_of_colour, rect_gray, cv::NORM_INF), 2.0);
+  // And the rectified colour is not the input colour (the maps moved it).
+  EXPECT_GT(cv::norm(colour.bgr, p.left_bgr, cv::NORM_INF), 50.0);
+  EXPECT_EQ(cv::norm(colour.depth_m, gray_only.depth_m, cv::NORM_INF), 0.0);
+}
+
+TEST(StereoDepth, GivenAColourImageOfTheWrongSizeOrType_WhenComputed_ThenOneLineErrorAndNothingWritten) {
+  auto sd = StereoDepth::create(ideal_rig(320, 240, 400, 0.1));
+  ASSERT_TRUE(sd.ok());
+  const cv::Mat gray(240, 320, CV_8UC1, cv::Scalar(0));
+  RgbdFrame out;
+  out.t_ns = -1;
+  expect_one_line_error(sd->compute(gray, gray, cv::Mat(100, 100, CV_8UC3), 5, 5, &out),
+                        "left colour image is 100x100");
+  expect_one_line_error(sd->compute(gray, gray, cv::Mat(240, 320, CV_8UC1), 5, 5, &out),
+                        "expected 320x240 8-bit BGR");
+  expect_one_line_error(sd->compute(gray, gray, cv::Mat(), 5, 5, &out), "left colour image is 0x0");
+  out.bgr.create(240, 320, CV_8UC3);
+  expect_one_line_error(sd->compute(gray, gray, out.bgr, 5, 5, &out), "is the output frame's bgr");
+  EXPECT_EQ(out.t_ns, -1);
+}
+
 TEST(StereoDepth, GivenBadRigsOrParameters_WhenCreated_ThenOneLineErrors) {
   StereoRig swapped = ideal_rig(320, 240, 400, -0.1);  // right camera on the left
   expect_one_line_error(StereoDepth::create(swapped).status(), "right camera is not to the right");

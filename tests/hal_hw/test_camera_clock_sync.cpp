@@ -221,6 +221,31 @@ TEST(CameraClockSync, GivenAHostTimeThenTheResultIsOnTheImuClockNotTheHosts) {
   }
 }
 
+TEST(CameraClockSync, GivenAnImuTimeThenToHostClockInvertsTheMapAndMatchesTheTruth) {
+  Scenario s;
+  s.seconds = 10;
+  s.drift = 120e-6;  // large enough that ignoring the drift in the inverse would show (1.2 µs per 10 ms)
+  CameraClockSync sync;
+  EXPECT_FALSE(sync.to_host_clock(0).has_value());  // nothing before the lock
+  run(&sync, simulate(s));
+  ASSERT_TRUE(sync.estimate().locked);
+  const CameraClockSyncConfig c;
+  // IMU times spanning the run and 30 s beyond it (extrapolated: the drift error grows with it).
+  for (int64_t dt : {int64_t{0}, int64_t{4'000'000'000}, int64_t{9'990'000'000}, int64_t{40'000'000'000}}) {
+    const int64_t t_host_true = s.t0_host_ns + dt;
+    const int64_t t_imu = imu_of_host(s, t_host_true);
+    const std::optional<int64_t> t_host = sync.to_host_clock(t_imu);
+    ASSERT_TRUE(t_host.has_value());
+    const double tolerance = mapped_bound_ns(s, c) + 4.0 * sync.estimate().drift_std_ppm * 1e-6 *
+                                                         std::fabs(static_cast<double>(t_host_true - sync.estimate().ref_host_ns));
+    EXPECT_NEAR(static_cast<double>(*t_host), static_cast<double>(t_host_true), tolerance) << dt;
+    // Round trip through both directions: within a nanosecond of rounding.
+    const std::optional<int64_t> back = sync.to_imu_clock(*t_host);
+    ASSERT_TRUE(back.has_value());
+    EXPECT_NEAR(static_cast<double>(*back), static_cast<double>(t_imu), 1.0) << dt;
+  }
+}
+
 TEST(CameraClockSync, GivenTheCameraReopenedThenItReassociatesWithTheNewSequence) {
   // 20 s, then V4L2 restarts its sequence at 0 (the device was reopened) while the MCU keeps counting.
   Scenario a;
@@ -441,6 +466,7 @@ TEST(CameraClockSync, GivenExtremeTimesThenNothingOverflows) {
     sync.add_sync_event(i % 2 ? big : INT64_MIN + i, static_cast<uint32_t>(i));
     sync.add_frame(i % 3 ? INT64_MIN + i : big - i, static_cast<uint32_t>(i * 7));
     (void)sync.to_imu_clock(i % 2 ? INT64_MAX : INT64_MIN);
+    (void)sync.to_host_clock(i % 2 ? INT64_MIN : INT64_MAX);
   }
   EXPECT_GT(sync.counters().bad_receipts, 0u);
   EXPECT_FALSE(sync.estimate().locked);

@@ -1,6 +1,7 @@
 // HwSource end to end on pseudo-terminals: an A9 and a u-blox (no camera) written by the test, their
 // samples arrive in the pipeline's rings on the host clock from the source's own threads; a port
-// that hangs up is counted, not fatal; an absent device is named at open; imu: zed is refused.
+// that hangs up is counted, not fatal; an absent device is named at open; the ZED 2i's IMU and
+// magnetometer (a fake sensor MCU behind the USB seam) reach the IMU and magnetometer rings.
 #include "hwr/hal/hw/hw_source.hpp"
 
 #include <gtest/gtest.h>
@@ -17,6 +18,7 @@
 
 #include "a9_frames.hpp"
 #include "hwr/hal/hw/ubx_protocol.hpp"
+#include "hwr/hal/hw/usb_hid.hpp"
 
 namespace hwr::hal::hw {
 namespace {
@@ -135,12 +137,82 @@ TEST(HwSource, GivenAnAbsentDeviceThenOpenNamesIt) {
       << src.status().message();
 }
 
-TEST(HwSource, GivenTheZedImuAskedForThenItSaysItIsNotWiredYet) {
+// A ZED 2i sensor MCU that streams reports at about its own pace (a 2.5 ms tick step per report,
+// 1 ms sleep per read so the test does not spin), a new magnetometer reading in every 8th.
+class PacedZedMcu final : public UsbHidOps {
+ public:
+  int open_result = kUsbSuccess;
+  int open(uint16_t, uint16_t) override { return open_result; }
+  int claim_interface(int) override { return kUsbSuccess; }
+  int control_out(uint8_t, uint8_t, uint16_t, uint16_t, const uint8_t*, uint16_t length, unsigned) override {
+    return length;
+  }
+  int interrupt_in(uint8_t* buf, int length, unsigned) override {
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    if (length < 64) return kUsbErrorOverflow;
+    std::memset(buf, 0, 64);
+    buf[0] = 0x01;
+    const uint64_t ticks = 1'000'000 + 64 * k_;  // 39062.5 ns ticks: 2.5 ms apart
+    for (int i = 0; i < 8; ++i) buf[2 + i] = static_cast<uint8_t>(ticks >> (8 * i));
+    buf[21] = 0x10;  // accel z = 4096 counts = 9.8189 m/s² (little-endian 0x1000)
+    buf[30] = k_ % 8 == 0 ? 2 : 1;
+    buf[31] = 0x40;  // mag x = 0x0140 = 320 counts = 20 µT
+    buf[32] = 0x01;
+    ++k_;
+    return 64;
+  }
+  void close() override {}
+
+ private:
+  uint64_t k_ = 0;
+};
+
+TEST(HwSource, GivenTheZedSensorMcuThenItsImuAndMagnetometerReachTheRingsOnTheHostClock) {
+  HwConfig c;
+  c.camera.enabled = false;  // no frames: the samples are timed by their receipt
+  const int64_t t_open = now_ns();
+  auto src = HwSource::open(c, "hw:test", t_open, std::make_unique<PacedZedMcu>());
+  ASSERT_TRUE(src.ok()) << src.status().message();
+  EXPECT_TRUE((*src)->info().has_imu);
+  EXPECT_TRUE((*src)->info().has_mag);
+  EXPECT_DOUBLE_EQ((*src)->info().imu_rate_hz, 400.0);
+  SensorStreamsConfig sc;
+  SensorStreams streams(sc);
+  ASSERT_TRUE((*src)->start(&streams).ok());
+  for (int wait = 0; wait < 500 && streams.imu.size() < 100; ++wait) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  (*src)->stop();
+  ASSERT_GE(streams.imu.size(), 100u);
+  ImuSample prev, s;
+  ASSERT_TRUE(streams.imu.try_pop(prev));
+  EXPECT_GE(prev.t_ns, t_open);  // on the host's CLOCK_MONOTONIC, after the source opened
+  EXPECT_LE(prev.t_ns, now_ns());
+  EXPECT_NEAR(prev.accel_mps2.z(), 9.8189, 1e-9);
+  while (streams.imu.try_pop(s)) {
+    EXPECT_GT(s.t_ns, prev.t_ns);
+    prev = s;
+  }
+  EXPECT_GE(streams.mag.size(), 10u);
+  MagSample m;
+  ASSERT_TRUE(streams.mag.try_pop(m));
+  EXPECT_DOUBLE_EQ(m.field_uT.x(), 20.0);
+  EXPECT_GE((*src)->counters().imu, 100u);
+  EXPECT_GE((*src)->counters().mag, 10u);
+  EXPECT_FALSE((*src)->hw_counters().zed_clock_synced);  // no camera, no frame sync
+  EXPECT_FALSE((*src)->finished());
+}
+
+TEST(HwSource, GivenTheZedSensorMcuAbsentThenOpenNamesIt) {
   HwConfig c;
   c.camera.enabled = false;
-  auto src = HwSource::open(c, "hw:test", 0);
+  auto mcu = std::make_unique<PacedZedMcu>();
+  mcu->open_result = kUsbErrorNotFound;
+  auto src = HwSource::open(c, "hw:test", 0, std::move(mcu));
   ASSERT_FALSE(src.ok());
-  EXPECT_NE(src.status().message().find("imu: zed"), std::string::npos);
+  EXPECT_EQ(src.status().code(), core::ErrorCode::kNotFound);
+  EXPECT_NE(src.status().message().find("zed_sensors: ZED 2i sensor MCU 2b03:f881"), std::string::npos)
+      << src.status().message();
 }
 
 TEST(HwSource, GivenAMissingCalibrationFileThenOpenSaysWhereToGetIt) {

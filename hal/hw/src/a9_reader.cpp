@@ -11,7 +11,10 @@ A9Reader::A9Reader(std::unique_ptr<ByteStream> port, core::SpscRing<ImuSample>* 
 
 core::Status A9Reader::step(int64_t now_ns, int read_timeout_ms) {
   if (!connected_.load(std::memory_order_relaxed)) {
-    if (!backoff_.due(now_ns)) return core::Status::Ok();
+    if (!backoff_.due(now_ns)) {
+      backoff_.wait_until_due(now_ns, read_timeout_ms);
+      return core::Status::Ok();
+    }
     if (core::Status st = port_->reopen(); !st.ok()) {
       backoff_.failed(now_ns);
       return st.code() == core::ErrorCode::kUnavailable || st.code() == core::ErrorCode::kNotFound ||

@@ -354,4 +354,19 @@ std::optional<int64_t> CameraClockSync::to_imu_clock(int64_t t_host_ns) const {
   return out;
 }
 
+std::optional<int64_t> CameraClockSync::to_host_clock(int64_t t_imu_ns) const {
+  if (!estimate_.locked) return std::nullopt;
+  // (1) about the reference: t_imu − ref = (t_host − ref)(1 + drift) + offset + frac.
+  int64_t d = 0;
+  if (__builtin_sub_overflow(t_imu_ns, estimate_.ref_host_ns, &d)) return std::nullopt;
+  if (__builtin_sub_overflow(d, estimate_.offset_ns, &d)) return std::nullopt;
+  const double dt_host = (static_cast<double>(d) - estimate_frac_ns_) / (1.0 + estimate_.drift_ppm * 1e-6);
+  if (!(std::fabs(dt_host) < 9e18)) return std::nullopt;
+  int64_t out = 0;
+  if (__builtin_add_overflow(estimate_.ref_host_ns, static_cast<int64_t>(std::llround(dt_host)), &out)) {
+    return std::nullopt;
+  }
+  return out;
+}
+
 }  // namespace hwr::hal::hw

@@ -108,7 +108,10 @@ void GnssReader::on_message(const GnssMessage& m, int64_t now_ns, core::Status* 
 
 core::Status GnssReader::step(int64_t now_ns, int read_timeout_ms) {
   if (!connected_.load(std::memory_order_relaxed)) {
-    if (!backoff_.due(now_ns)) return core::Status::Ok();
+    if (!backoff_.due(now_ns)) {
+      backoff_.wait_until_due(now_ns, read_timeout_ms);
+      return core::Status::Ok();
+    }
     if (core::Status st = port_->reopen(); !st.ok()) {
       backoff_.failed(now_ns);
       return is_unplug(st) ? core::Status::Ok() : st;

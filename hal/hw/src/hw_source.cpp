@@ -7,7 +7,9 @@
 #include "hwr/hal/hw/a9_reader.hpp"
 #include "hwr/hal/hw/gnss_reader.hpp"
 #include "hwr/hal/hw/tty_port.hpp"
+#include "hwr/hal/hw/usb_hid.hpp"
 #include "hwr/hal/hw/zed_camera_reader.hpp"
+#include "hwr/hal/hw/zed_sensor_reader.hpp"
 
 namespace hwr::hal::hw {
 namespace {
@@ -18,19 +20,20 @@ int64_t monotonic_ns() {
       .count();
 }
 
-constexpr double kA9RateHz = 150.0;  // hardware.md: ~150 Hz
+constexpr double kA9RateHz = 150.0;          // hardware.md: ~150 Hz
+constexpr double kZedSensorRateHz = 400.0;   // hardware.md: sensor reports ~400 Hz
 
 }  // namespace
 
 core::Expected<std::unique_ptr<HwSource>> HwSource::open(const HwConfig& config, const std::string& name,
                                                          int64_t now_ns) {
+  return open(config, name, now_ns, nullptr);
+}
+
+core::Expected<std::unique_ptr<HwSource>> HwSource::open(const HwConfig& config, const std::string& name,
+                                                         int64_t now_ns, std::unique_ptr<UsbHidOps> zed_usb) {
   std::unique_ptr<HwSource> s(new HwSource());
   s->config_ = config;
-  if (config.imu == ImuKind::kZed && config.zed_sensors) {
-    return core::Unavailable(
-        "imu: zed: the ZED 2i's own IMU over USB HID is not wired into the hw: source yet (issue #8); set "
-        "imu: a9 with the Handsfree A9, or zed_sensors.enabled: false and no IMU");
-  }
   SourceInfo& info = s->info_;
   info.name = name;
   info.first_t_ns = now_ns;
@@ -46,6 +49,19 @@ core::Expected<std::unique_ptr<HwSource>> HwSource::open(const HwConfig& config,
     info.T_imu_cam = config.T_imu_cam * s->camera_->T_cam_rect();  // the pipeline sees the rectified left
     info.stereo = true;
     info.camera_rate_hz = config.camera.fps;
+  }
+  if (config.zed_sensors) {
+    s->zed_sensors_ = std::make_unique<ZedSensorReader>(zed_usb ? std::move(zed_usb) : make_libusb_hid_ops(),
+                                                        ZedSensorOutputs{});
+    if (core::Status st = s->zed_sensors_->open(now_ns); !st.ok()) {
+      return core::Status(st.code(), "zed_sensors: " + st.message());
+    }
+    if (config.imu == ImuKind::kZed) {
+      info.has_imu = true;
+      info.imu_rate_hz = kZedSensorRateHz;
+      info.has_mag = true;
+    }
+    if (s->camera_) s->frame_stamps_ = std::make_unique<core::SpscRing<CameraFrameStamp>>(64);
   }
   if (config.a9_enabled) {
     auto port = TtyPort::open(config.a9_device, config.a9_baud);
@@ -102,7 +118,18 @@ core::Status HwSource::start(SensorStreams* streams) {
                                    std::to_string(K.width) + "x" + std::to_string(K.height) +
                                    " stereo frames");
     }
+    if (frame_stamps_) camera_->set_frame_stamps(frame_stamps_.get());
     run_thread("camera", [this, streams](int64_t now) { return camera_->step(now, streams); });
+  }
+  if (zed_sensors_) {
+    ZedSensorOutputs out;
+    if (config_.imu == ImuKind::kZed) {  // only the estimator's IMU writes the IMU ring
+      out.imu = &streams->imu;
+      out.mag = &streams->mag;
+    }
+    out.frame_stamps = frame_stamps_.get();
+    zed_sensors_->set_outputs(out);
+    run_thread("zed_sensors", [this](int64_t now) { return zed_sensors_->step(now); });
   }
   if (a9_port_ && config_.imu == ImuKind::kA9) {  // only the estimator's IMU writes the IMU ring
     a9_ = std::make_unique<A9Reader>(std::move(a9_port_), &streams->imu);
@@ -141,6 +168,11 @@ SourceCounters HwSource::counters() const {
     c.frame_errors = z.depth_errors + z.incomplete + z.bad_timestamps;
   }
   if (a9_ && config_.imu == ImuKind::kA9) c.imu = a9_->counters().samples;
+  if (zed_sensors_ && config_.imu == ImuKind::kZed) {
+    const ZedSensorReaderCounters z = zed_sensors_->counters();
+    c.imu = z.imu_samples;
+    c.mag = z.mag_samples;
+  }
   if (gnss_) c.gnss = gnss_->counters().fixes;
   return c;
 }
@@ -157,6 +189,13 @@ HwSourceCounters HwSource::hw_counters() const {
   if (a9_) {
     h.a9_disconnects = a9_->counters().disconnects;
     h.a9_crc_errors = a9_->counters().crc_errors;
+  }
+  if (zed_sensors_) {
+    const ZedSensorReaderCounters z = zed_sensors_->counters();
+    h.zed_sensor_disconnects = z.disconnects;
+    h.zed_sensor_reports_dropped = z.repeated + z.imu_not_valid + z.parse_errors + z.out_of_order;
+    h.zed_clock_synced = z.sync_locked;
+    h.zed_clock_drift_ppm = z.sync_drift_ppm;
   }
   if (gnss_) {
     h.gnss_disconnects = gnss_->counters().disconnects;

@@ -27,6 +27,7 @@ core::Expected<std::unique_ptr<ZedCameraReader>> ZedCameraReader::open(const HwC
   r->depth_.emplace(std::move(depth.value()));
   r->left_gray_.create(c.eye_height, c.eye_width, CV_8UC1);
   r->right_gray_.create(c.eye_height, c.eye_width, CV_8UC1);
+  r->left_bgr_.create(c.eye_height, c.eye_width, CV_8UC3);
   if (core::Status st = r->open_capture(); !st.ok()) return st;
   return r;
 }
@@ -53,7 +54,10 @@ core::Status ZedCameraReader::open_capture() {
 
 core::Status ZedCameraReader::step(int64_t now_ns, SensorStreams* streams, int timeout_ms) {
   if (!capture_) {
-    if (!backoff_.due(now_ns)) return core::Status::Ok();
+    if (!backoff_.due(now_ns)) {
+      backoff_.wait_until_due(now_ns, timeout_ms);
+      return core::Status::Ok();
+    }
     if (core::Status st = open_capture(); !st.ok()) {
       backoff_.failed(now_ns);
       return is_unplug(st) ? core::Status::Ok() : st;
@@ -78,14 +82,20 @@ core::Status ZedCameraReader::step(int64_t now_ns, SensorStreams* streams, int t
   }
   if (!got.value()) return core::Status::Ok();  // nothing within the timeout
   const V4l2Frame f = *got.value();
-  // Both eyes' gray halves, converted straight from the kernel buffer (side_by_side.hpp).
+  // Stamped before anything below can drop the frame: the frame sync pairs every exposure the MCU
+  // signals with a dequeued buffer (camera_clock_sync.hpp), kept or not.
+  if (stamps_out_ != nullptr && !stamps_out_->try_push(CameraFrameStamp{f.t_ns, f.sequence})) {
+    stamps_dropped_.fetch_add(1, std::memory_order_relaxed);
+  }
+  // Both eyes' gray halves and the left colour, converted straight from the kernel buffer
+  // (side_by_side.hpp) into the images sized at open.
   YuyvFrameView view;
   view.data = f.data;
   view.size_bytes = f.bytes;
   view.width_px = f.width;
   view.height_px = f.height;
   view.stride_bytes = f.stride_bytes;
-  const core::Status split = split_side_by_side_yuyv(view, &left_gray_, &right_gray_, nullptr);
+  const core::Status split = split_side_by_side_yuyv(view, &left_gray_, &right_gray_, &left_bgr_);
   if (core::Status st = capture_->requeue(f); !st.ok()) return st;  // the halves are copied out
   if (!split.ok()) return split;                                    // sized at open: a bug or a mode change
 
@@ -95,7 +105,8 @@ core::Status ZedCameraReader::step(int64_t now_ns, SensorStreams* streams, int t
     pool_empty_.fetch_add(1, std::memory_order_relaxed);
     return core::Status::Ok();
   }
-  if (core::Status st = depth_->compute(left_gray_, right_gray_, f.t_ns, f.sequence, out); !st.ok()) {
+  if (core::Status st = depth_->compute(left_gray_, right_gray_, left_bgr_, f.t_ns, f.sequence, out);
+      !st.ok()) {
     depth_errors_.fetch_add(1, std::memory_order_relaxed);
     spare_ = out;
     return core::Status::Ok();
@@ -120,6 +131,7 @@ ZedCameraCounters ZedCameraReader::counters() const {
   c.incomplete = incomplete_.load(std::memory_order_relaxed);
   c.driver_dropped = driver_dropped_.load(std::memory_order_relaxed);
   c.bad_timestamps = bad_timestamps_.load(std::memory_order_relaxed);
+  c.stamps_dropped = stamps_dropped_.load(std::memory_order_relaxed);
   return c;
 }
 

@@ -4,9 +4,11 @@
 // once at construction; each pair is remapped into preallocated buffers, matched, and turned into
 // metric depth Z = f·B/d (f: rectified focal length in px, B: baseline in m, d: disparity in px).
 //
-// Output is an RgbdFrame in the RECTIFIED left camera: bgr is the rectified left image (gray
-// replicated to three channels), depth_m its depth (0 = no match or outside [min, max]),
-// right_gray the rectified right image, intrinsics the rectified pinhole (no distortion).
+// Output is an RgbdFrame in the RECTIFIED left camera: bgr is the rectified left image (the left
+// colour image remapped with the left rectification maps when the caller has one, as the ZED's
+// YUYV video does; otherwise the gray left replicated to three channels, as for EuRoC), depth_m its
+// depth (0 = no match or outside [min, max]), right_gray the rectified right image, intrinsics the
+// rectified pinhole (no distortion). Matching always runs on the gray pair.
 // The rectified camera is rotated against the original left camera by T_cam0_rect (no
 // translation), so a body-to-camera extrinsic composes as T_body_rect = T_body_cam0 · T_cam0_rect.
 
@@ -61,6 +63,12 @@ class StereoDepth {
   // *out (buffers reused when sizes match); out->t_ns = t_ns, out->seq = seq.
   core::Status compute(const cv::Mat& left_gray, const cv::Mat& right_gray, int64_t t_ns, uint64_t seq,
                        RgbdFrame* out);
+  // The same, and out->bgr is left_bgr (CV_8UC3 at the rig's resolution, the same exposure as
+  // left_gray, e.g. both converted from one YUYV frame) through the left rectification maps, in
+  // place of the replicated gray. Matching still uses left_gray / right_gray. No allocation when
+  // out->bgr already has that size and type.
+  core::Status compute(const cv::Mat& left_gray, const cv::Mat& right_gray, const cv::Mat& left_bgr,
+                       int64_t t_ns, uint64_t seq, RgbdFrame* out);
 
   const PinholeIntrinsics& rectified_intrinsics() const { return rect_; }
   // Rotation from the rectified left camera to the original left camera (translation zero).
@@ -70,6 +78,9 @@ class StereoDepth {
 
  private:
   StereoDepth() = default;
+  // left_bgr null: out->bgr is the rectified gray left replicated.
+  core::Status compute_impl(const cv::Mat& left_gray, const cv::Mat& right_gray, const cv::Mat* left_bgr,
+                            int64_t t_ns, uint64_t seq, RgbdFrame* out);
 
   StereoSgbmParams params_;
   PinholeIntrinsics rect_;

@@ -108,6 +108,9 @@ class CameraClockSync {
 
   // t_host_ns on the IMU clock by (1); nothing until locked.
   std::optional<int64_t> to_imu_clock(int64_t t_host_ns) const;
+  // The inverse: t_imu_ns on the host clock, t_host = ref + (t_imu − ref − offset) / (1 + drift);
+  // nothing until locked. This is how IMU samples join the camera frames' timeline.
+  std::optional<int64_t> to_host_clock(int64_t t_imu_ns) const;
 
   const CameraClockEstimate& estimate() const { return estimate_; }
   const CameraClockSyncCounters& counters() const { return counters_; }

@@ -4,7 +4,9 @@
 // 2 s. Driven by the caller's clock (tests pass their own times).
 
 #include <algorithm>
+#include <chrono>
 #include <cstdint>
+#include <thread>
 
 namespace hwr::hal::hw {
 
@@ -24,6 +26,12 @@ class ReconnectBackoff {
     retry_at_ns_ = 0;
   }
   int64_t next_delay_ns() const { return delay_ns_; }
+  // A reader's step() while the device is away and the retry not yet due: sleeps until it is due,
+  // at most max_ms (what one read would have waited), so the reader's loop does not spin.
+  void wait_until_due(int64_t now_ns, int max_ms) const {
+    const int64_t wait_ns = std::min<int64_t>(retry_at_ns_ - now_ns, int64_t{max_ms} * 1'000'000);
+    if (wait_ns > 0) std::this_thread::sleep_for(std::chrono::nanoseconds(wait_ns));
+  }
 
  private:
   int64_t delay_ns_ = kFirstNs;
