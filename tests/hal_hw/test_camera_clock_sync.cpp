@@ -236,8 +236,9 @@ TEST(CameraClockSync, GivenAnImuTimeThenToHostClockInvertsTheMapAndMatchesTheTru
     const int64_t t_imu = imu_of_host(s, t_host_true);
     const std::optional<int64_t> t_host = sync.to_host_clock(t_imu);
     ASSERT_TRUE(t_host.has_value());
-    const double tolerance = mapped_bound_ns(s, c) + 4.0 * sync.estimate().drift_std_ppm * 1e-6 *
-                                                         std::fabs(static_cast<double>(t_host_true - sync.estimate().ref_host_ns));
+    const double tolerance =
+        mapped_bound_ns(s, c) + 4.0 * sync.estimate().drift_std_ppm * 1e-6 *
+                                    std::fabs(static_cast<double>(t_host_true - sync.estimate().ref_host_ns));
     EXPECT_NEAR(static_cast<double>(*t_host), static_cast<double>(t_host_true), tolerance) << dt;
     // Round trip through both directions: within a nanosecond of rounding.
     const std::optional<int64_t> back = sync.to_imu_clock(*t_host);

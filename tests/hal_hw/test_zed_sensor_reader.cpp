@@ -30,7 +30,8 @@ void put(Bytes* b, size_t off, uint64_t v, int n) {
 void put_i16(Bytes* b, size_t off, int16_t v) { put(b, off, static_cast<uint16_t>(v), 2); }
 
 // A 64-byte input report (hardware.md "Sensors over HID" offsets).
-Bytes report_bytes(uint64_t ticks, bool frame_sync, uint32_t sync_count, bool mag_new, bool imu_valid = true) {
+Bytes report_bytes(uint64_t ticks, bool frame_sync, uint32_t sync_count, bool mag_new,
+                   bool imu_valid = true) {
   Bytes b(64, 0);
   b[0] = 0x01;
   b[1] = imu_valid ? 0 : 1;
@@ -90,7 +91,8 @@ class FakeZedMcu final : public UsbHidOps {
         sync_count_ = 0;
         k_ = 0;
         const int64_t t_host_next = *clock_ns_ + kMs;
-        imu_offset_ns_ = imu_of_ticks(64) - t_host_next - std::llround(sim_.drift * static_cast<double>(t_host_next));
+        imu_offset_ns_ =
+            imu_of_ticks(64) - t_host_next - std::llround(sim_.drift * static_cast<double>(t_host_next));
       }
     }
     open_ = true;
@@ -128,7 +130,8 @@ class FakeZedMcu final : public UsbHidOps {
     const int64_t arrival = t_host + kMs + static_cast<int64_t>(latency_tail_ms_(rng_) * 1e6);
     *clock_ns_ = std::max(*clock_ns_ + 1, arrival);
     if (sync) {  // the camera's frame of this exposure: stamped at the exposure, dequeued 40 ms later
-      const auto jitter = static_cast<int64_t>((2 * u01_(rng_) - 1) * static_cast<double>(sim_.frame_jitter_ns));
+      const auto jitter =
+          static_cast<int64_t>((2 * u01_(rng_) - 1) * static_cast<double>(sim_.frame_jitter_ns));
       pending_frames_.push_back({t_host + jitter, sequence_++});
     }
     while (stamps_ != nullptr && !pending_frames_.empty() &&

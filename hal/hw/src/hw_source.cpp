@@ -20,8 +20,8 @@ int64_t monotonic_ns() {
       .count();
 }
 
-constexpr double kA9RateHz = 150.0;          // hardware.md: ~150 Hz
-constexpr double kZedSensorRateHz = 400.0;   // hardware.md: sensor reports ~400 Hz
+constexpr double kA9RateHz = 150.0;         // hardware.md: ~150 Hz
+constexpr double kZedSensorRateHz = 400.0;  // hardware.md: sensor reports ~400 Hz
 
 }  // namespace
 

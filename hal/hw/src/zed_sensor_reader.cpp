@@ -18,7 +18,8 @@ ZedSensorReader::ZedSensorReader(std::unique_ptr<UsbHidOps> usb, const ZedSensor
     : usb_(std::move(usb)), clock_(std::move(clock)), hid_(*usb_, hid), out_(outputs), sync_(sync) {}
 
 int64_t ZedSensorReader::monotonic_ns() {
-  return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now().time_since_epoch())
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(
+             std::chrono::steady_clock::now().time_since_epoch())
       .count();
 }
 
@@ -117,8 +118,8 @@ core::Status ZedSensorReader::step(int64_t now_ns, int read_timeout_ms) {
     HWR_LOG_INFO("zed-sensors", "reconnected");
   }
   core::Status st = hid_.keep_alive(now_ns);
-  core::Expected<size_t> n = st.ok() ? hid_.read_report(buf_.data(), read_timeout_ms)
-                                     : core::Expected<size_t>(st);
+  core::Expected<size_t> n =
+      st.ok() ? hid_.read_report(buf_.data(), read_timeout_ms) : core::Expected<size_t>(st);
   keep_alives_.store(hid_.counters().keep_alives, std::memory_order_relaxed);
   if (!n.ok()) {
     if (n.status().code() == core::ErrorCode::kCorruptData) {  // an over-long report: skip it

@@ -50,20 +50,20 @@ struct ZedSensorOutputs {
 };
 
 struct ZedSensorReaderCounters {
-  uint64_t imu_samples = 0;       // pushed into the IMU ring (or that would have been: no ring)
-  uint64_t mag_samples = 0;       // new magnetometer readings pushed
-  uint64_t parse_errors = 0;      // short reports and other report ids
-  uint64_t imu_not_valid = 0;     // reports with imu_not_valid set (skipped)
-  uint64_t repeated = 0;          // the same timestamp again (dropped)
-  uint64_t out_of_order = 0;      // mapped time not after the previous sample's (dropped)
-  uint64_t clock_restarts = 0;    // the MCU's clock went back
-  uint64_t gaps = 0;              // report gaps over 1.5 periods (ZedReportMonitor)
+  uint64_t imu_samples = 0;     // pushed into the IMU ring (or that would have been: no ring)
+  uint64_t mag_samples = 0;     // new magnetometer readings pushed
+  uint64_t parse_errors = 0;    // short reports and other report ids
+  uint64_t imu_not_valid = 0;   // reports with imu_not_valid set (skipped)
+  uint64_t repeated = 0;        // the same timestamp again (dropped)
+  uint64_t out_of_order = 0;    // mapped time not after the previous sample's (dropped)
+  uint64_t clock_restarts = 0;  // the MCU's clock went back
+  uint64_t gaps = 0;            // report gaps over 1.5 periods (ZedReportMonitor)
   uint64_t missed_sync_events = 0;
-  uint64_t frame_stamps = 0;      // received from the camera thread
-  uint64_t synced_samples = 0;    // samples timed by the frame sync (the rest by receipt times)
+  uint64_t frame_stamps = 0;    // received from the camera thread
+  uint64_t synced_samples = 0;  // samples timed by the frame sync (the rest by receipt times)
   uint64_t disconnects = 0, reconnects = 0, keep_alives = 0;
-  bool sync_locked = false;       // CameraClockSync's current state
-  double sync_drift_ppm = 0;      // ... its drift estimate and residual RMS when locked
+  bool sync_locked = false;   // CameraClockSync's current state
+  double sync_drift_ppm = 0;  // ... its drift estimate and residual RMS when locked
   double sync_residual_rms_ns = 0;
 };
 
@@ -75,8 +75,9 @@ class ZedSensorReader {
 
   // Takes the USB device (make_libusb_hid_ops() on the robot, a fake in the tests) and the clock
   // (the tests' fake device advances its own).
-  ZedSensorReader(std::unique_ptr<UsbHidOps> usb, const ZedSensorOutputs& outputs, const ZedHidConfig& hid = {},
-                  const CameraClockSyncConfig& sync = {}, Clock clock = &ZedSensorReader::monotonic_ns);
+  ZedSensorReader(std::unique_ptr<UsbHidOps> usb, const ZedSensorOutputs& outputs,
+                  const ZedHidConfig& hid = {}, const CameraClockSyncConfig& sync = {},
+                  Clock clock = &ZedSensorReader::monotonic_ns);
 
   // Opens the MCU and enables its stream. Errors (the robot refuses to start): NotFound (not
   // attached), IoError (permissions: names toolchain/deploy/99-hwr.rules; busy), Unavailable.
