@@ -38,6 +38,8 @@ inline constexpr const char* kChannelMag = "HWR_MAG";
 inline constexpr const char* kChannelGnss = "HWR_GNSS";
 inline constexpr const char* kChannelCamLeft = "HWR_CAM_LEFT";
 inline constexpr const char* kChannelCamDepth = "HWR_CAM_DEPTH";
+inline constexpr const char* kChannelCamRight = "HWR_CAM_RIGHT";
+inline constexpr const char* kChannelRecordingInfo = "HWR_RECORDING_INFO";
 
 // Production default (see above).
 inline constexpr const char* kDefaultLinkUrl = "udpm://239.255.76.67:7667?ttl=0&recv_buf_size=8388608";
