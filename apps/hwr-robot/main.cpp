@@ -38,6 +38,8 @@
 #include "hwr/hal/replay_source.hpp"
 #include "hwr/hal/stream_health.hpp"
 #include "hwr/mapio/map_streamer.hpp"
+#include "hwr/mapio/recording_log.hpp"
+#include "hwr/mapio/sensor_recorder.hpp"
 #include "hwr_lcm/status_t.hpp"
 #include "hwr/recon/local_mapper.hpp"
 #include "hwr/recon/local_mapper_config.hpp"
@@ -90,6 +92,7 @@ struct Args {
   // "truth": the simulator's joints as detections; "geometry": the seam detector; "onnx:PATH",
   // "tensorrt:PATH": a learned detector (falls back to the seam detector when the model is unusable).
   std::string regions;
+  std::string record;  // --record FILE: what the pipeline consumes, to an LCM log
   double link_wait_s = 30.0;
   bool use_imu = true, local_ba = true, full_ba = true;
 };
@@ -102,10 +105,11 @@ void usage() {
       "                 [--no-imu] [--no-local-ba] [--no-full-ba] [--ba-export FILE]\n"
       "                 [--map-out DIR] [--cloud-out FILE] [--link URL [--robot-id ID] [--link-wait S]]\n"
       "                 [--prior-map DIR] [--regions truth|geometry|onnx:MODEL|tensorrt:ENGINE]\n"
+      "                 [--record FILE]\n"
       "  KIND:WHAT  sim:NAME|FILE.yaml (the simulator renders live), sim:DIR (a run written by hwr-sim),\n"
       "             tum:DIR (TUM RGB-D folder), euroc:DIR (EuRoC folder or mav0),\n"
       "             hw:CONFIG (the live sensors, config/hw.yaml; paced at real time; Ctrl-C ends the run;\n"
-      "             docs/hardware.md)\n"
+      "             docs/hardware.md), lcmlog:FILE (a run recorded with --record)\n"
       "  --config FILE      settings (YAML, sections estimation: and map:; config/estimation.yaml and\n"
       "                     config/map.yaml list them)\n"
       "  --traj-out FILE    camera poses T_world_cam at every tracked image time (TUM format)\n"
@@ -118,6 +122,10 @@ void usage() {
       "                     written as they close (docs/reconstruction.md)\n"
       "  --cloud-out FILE   every segment's points in the world frame, at the end (binary CloudPoint\n"
       "                     array, 16 bytes per point; hwr-eval ae --cloud FILE)\n"
+      "  --record FILE      record every IMU, magnetometer and GNSS sample and every frame (left\n"
+      "                     colour, depth in mm, rectified right) the pipeline consumes to an LCM log\n"
+      "                     (lcm-logplayer reads it; replay: --source lcmlog:FILE; docs/mapio.md);\n"
+      "                     live sources drop what the disk cannot keep up with (counted), replays wait\n"
       "  --link URL         stream the map to the ground station (hwr-ground) over LCM, e.g.\n"
       "                     udpm://239.255.76.67:7667?ttl=0&recv_buf_size=8388608 (docs/mapio.md)\n"
       "  --robot-id ID      this robot's name on the link ([A-Za-z0-9_-], default robot1)\n"
@@ -160,6 +168,7 @@ struct Robot {
   hwr::recon::SegmentSink* segments = nullptr;
   hwr::recon::SegmentSink* segments_updated = nullptr;  // updated prior segments (--map-out), as they are
   hwr::mapio::MapStreamer* streamer = nullptr;          // --link: map chunks and telemetry
+  hwr::mapio::SensorRecorder* recorder = nullptr;       // --record: every sample and frame consumed
   hwr::recon::RelocalizationWorker* reloc = nullptr;    // --prior-map
   // --prior-map: the magnetometer and GNSS priors of the queries (relocalization_priors.hpp), fed
   // with the newest tracked camera pose (at most a frame older than the sample).
@@ -215,11 +224,13 @@ void inertial_task(void* ctx, int64_t now_ns) {
   auto* r = static_cast<Robot*>(ctx);
   hwr::hal::ImuSample s;
   while (r->streams->imu.try_pop(s)) {
+    if (r->recorder != nullptr) r->recorder->record_imu(s);
     if (r->imu.check(s)) r->estimator->add_imu(s);
   }
   r->estimator->advance_imu(now_ns - kImuHoldbackNs);
   hwr::hal::MagSample m;
   while (r->streams->mag.try_pop(m)) {
+    if (r->recorder != nullptr) r->recorder->record_mag(m);
     ++r->mag;
     r->estimator->add_mag(m);
     r->mapper->add_mag(m);  // keyframe metadata for relocalization
@@ -229,6 +240,7 @@ void inertial_task(void* ctx, int64_t now_ns) {
   }
   hwr::hal::GnssFix g;
   while (r->streams->gnss.try_pop(g)) {
+    if (r->recorder != nullptr) r->recorder->record_gnss(g);
     ++r->gnss;
     if (g.has_3d_fix()) ++r->gnss_3d;
     r->mapper->add_gnss(g);
@@ -242,6 +254,7 @@ void camera_task(void* ctx, int64_t) {
   auto* r = static_cast<Robot*>(ctx);
   hwr::hal::RgbdFrame* f = nullptr;
   while (r->streams->frames.try_pop(f)) {
+    if (r->recorder != nullptr) r->recorder->record_frame(*f);
     r->camera.check(*f);
     const hwr::estimation::TrackResult& tr = r->estimator->process_frame(*f);
     r->pose_valid = tr.state == hwr::estimation::TrackState::kTracking ||
@@ -653,6 +666,19 @@ hwr::core::Expected<OpenedSource> open_source(const std::string& spec) {
     return hwr::core::Unavailable("this build has no simulator support (HWR_WITH_SIM=OFF)");
 #endif
   }
+  if (spec.rfind("lcmlog:", 0) == 0) {
+    hwr::mapio::RecordingLogStats stats;
+    auto rec = hwr::mapio::open_recording_log(spec.substr(7), &stats);
+    if (!rec.ok()) return rec.status();
+    if (stats.undecodable + stats.bad_images + stats.incomplete_frames + stats.resyncs > 0) {
+      std::fprintf(stderr,
+                   "hwr-robot: %s: damaged recording: skipped %" PRIu64 " undecodable events, %" PRIu64
+                   " bad images, %" PRIu64 " incomplete frames, %" PRIu64 " damaged event headers\n",
+                   spec.c_str(), stats.undecodable, stats.bad_images, stats.incomplete_frames, stats.resyncs);
+    }
+    out.log = std::move(rec.value());
+    return out;
+  }
   auto log = hwr::hal::open_dataset_log(spec);
   if (!log.ok()) return log.status();
   out.log = std::move(log.value());
@@ -793,6 +819,17 @@ int run(Args args) {
       return 1;
     }
     source = std::move(replay.value());
+  }
+  std::unique_ptr<hwr::mapio::SensorRecorder> recorder;
+  if (!args.record.empty()) {
+    hwr::mapio::SensorRecorderConfig rec_cfg;
+    rec_cfg.wait_when_full = !live;  // a replay's recording is complete; live sensors are never held up
+    auto rec = hwr::mapio::SensorRecorder::open(args.record, info, rec_cfg);
+    if (!rec.ok()) {
+      std::fprintf(stderr, "hwr-robot: %s\n", rec.status().message().c_str());
+      return 1;
+    }
+    recorder = std::move(rec.value());
   }
   std::signal(SIGINT, on_stop_signal);  // Ctrl-C / systemctl stop: end the run cleanly
   std::signal(SIGTERM, on_stop_signal);
@@ -1039,6 +1076,7 @@ int run(Args args) {
   }
   robot.segments = &segments;
   robot.streamer = streamer.get();
+  robot.recorder = recorder.get();
   robot.quiet = args.quiet;
   robot.imu = hwr::hal::StreamMonitor(info.imu_rate_hz > 0 ? info.imu_rate_hz : 200.0);
   robot.camera = hwr::hal::StreamMonitor(info.camera_rate_hz > 0 ? info.camera_rate_hz : 30.0);
@@ -1064,6 +1102,8 @@ int run(Args args) {
   inertial_task(&robot, end);
   camera_task(&robot, end);
   estimator->advance_imu(end + kImuHoldbackNs);
+  robot.recorder = nullptr;  // everything the pipeline took is recorded
+  const hwr::core::Status record_status = recorder ? recorder->close() : hwr::core::Status::Ok();
   mapping_task(&robot, end);
   if (reloc) {
     // A replay runs faster than the worker: the attempt under way still counts.
@@ -1138,6 +1178,24 @@ int run(Args args) {
   }
   std::printf("magnetometer: samples=%" PRIu64 "  gnss: fixes=%" PRIu64 " with_3d_fix=%" PRIu64 "\n",
               robot.mag, robot.gnss, robot.gnss_3d);
+  if (recorder) {
+    const hwr::mapio::SensorRecorderCounters rec_counts = recorder->counters();
+    std::printf("recording: imu=%" PRIu64 " mag=%" PRIu64 " gnss=%" PRIu64 " frames=%" PRIu64
+                " dropped=%" PRIu64 " (%.1f MB) -> %s\n",
+                rec_counts.imu, rec_counts.mag, rec_counts.gnss, rec_counts.frames, rec_counts.dropped,
+                static_cast<double>(rec_counts.bytes) * 1e-6, recorder->path().c_str());
+    if (!record_status.ok()) {
+      std::fprintf(stderr, "hwr-robot: %s\n", record_status.message().c_str());
+      rc = 1;
+    } else if (rec_counts.dropped > 0) {
+      std::fprintf(
+          stderr,
+          "hwr-robot: --record: %" PRIu64
+          " samples or frames not recorded: the disk did not keep up (record to NVMe), or frames not of "
+          "the camera's size\n",
+          rec_counts.dropped);
+    }
+  }
   if (fault_report) {
     std::printf("faults injected: frames_removed=%" PRIu64 " exposure_changed=%" PRIu64
                 " depth_holes=%" PRIu64 " imu_removed=%" PRIu64 "\n",
@@ -1420,6 +1478,8 @@ int main(int argc, char** argv) {
       args.robot_id = value("--robot-id");
     } else if (a == "--link-wait") {
       args.link_wait_s = std::atof(value("--link-wait"));
+    } else if (a == "--record") {
+      args.record = value("--record");
     } else if (a == "--ba-export") {
       args.ba_export = value("--ba-export");
     } else if (a == "--no-imu") {
