@@ -66,7 +66,8 @@ core::Expected<std::unique_ptr<SensorRecorder>> SensorRecorder::open(const std::
     return core::IoError("--record " + path + ": cannot create the log file" +
                          (errno != 0 ? std::string(" (") + std::strerror(errno) + ")" : std::string()));
   }
-  // Every frame slot sized for the camera now, so record_frame() only copies.
+  // Every frame slot sized for the camera now and its pages touched (zeroed), so record_frame() only
+  // copies: a first write into fresh pages cost 30 ms for a 1280x720 stereo frame (hwr-bench record).
   const int w = info.intrinsics.width, h = info.intrinsics.height;
   std::vector<FrameSlot*> all;
   for (size_t i = 0; i < config.frame_slots; ++i) {
@@ -75,6 +76,9 @@ core::Expected<std::unique_ptr<SensorRecorder>> SensorRecorder::open(const std::
     s->depth_mm.create(h, w, CV_16UC1);
     s->beyond.create(h, w, CV_8UC1);
     if (info.stereo) s->right.create(h, w, CV_8UC1);
+    for (cv::Mat* m : {&s->bgr, &s->depth_mm, &s->beyond, &s->right}) {
+      if (!m->empty()) m->setTo(0);
+    }
     all.push_back(s);
   }
   for (FrameSlot* s : all) r->slots_.release(s);
