@@ -1,6 +1,7 @@
 #include "hwr/mapio/recording_log.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <map>
@@ -245,7 +246,11 @@ core::Expected<hal::ReplayLog> open_recording_log(const std::string& path, Recor
       hal::MagSample s;
       s.t_ns = mag.t_ns;
       s.field_uT = Eigen::Vector3d(mag.field_ut[0], mag.field_ut[1], mag.field_ut[2]);
-      if (s.field_uT.allFinite()) log.mag.push_back(s);
+      if (s.field_uT.allFinite()) {
+        log.mag.push_back(s);
+      } else {
+        ++stats.undecodable;
+      }
     } else if (same_channel(*e, kChannelGnss)) {
       if (!decode(*e, &gnss)) {
         ++stats.undecodable;
@@ -260,7 +265,12 @@ core::Expected<hal::ReplayLog> open_recording_log(const std::string& path, Recor
       g.num_sv = static_cast<uint8_t>(std::max<int8_t>(gnss.num_satellites, 0));
       g.h_acc_m = gnss.h_acc_m;
       g.v_acc_m = gnss.v_acc_m;
-      log.gnss.push_back(g);
+      if (std::isfinite(g.lat_deg) && std::isfinite(g.lon_deg) && std::isfinite(g.height_m) &&
+          std::fabs(g.lat_deg) <= 90 && std::fabs(g.lon_deg) <= 180) {
+        log.gnss.push_back(g);
+      } else {
+        ++stats.undecodable;
+      }
     } else if (same_channel(*e, kChannelCamLeft) || same_channel(*e, kChannelCamDepth) ||
                same_channel(*e, kChannelCamRight)) {
       if (!decode_image(*e, &image)) {

@@ -305,6 +305,39 @@ TEST(SensorRecording, GivenLengthFieldsThatLieThenTheLogIsRefusedOrSkippedWithou
   ::unlink(path.c_str());
 }
 
+TEST(SensorRecording, GivenNonFiniteSamplesRecordedThenTheReplayLeavesThemOutAndCountsThem) {
+  const std::string path = temp_path("non_finite");
+  {
+    auto rec = SensorRecorder::open(path, stereo_info());
+    ASSERT_TRUE(rec.ok());
+    const double nan = std::numeric_limits<double>::quiet_NaN();
+    for (int i = 0; i < 4; ++i) {
+      hal::ImuSample s;
+      s.t_ns = int64_t{1'000'000'000} + i * 2'500'000;
+      s.accel_mps2 = Eigen::Vector3d(0, 0, i == 1 ? nan : 9.81);
+      ASSERT_TRUE((*rec)->record_imu(s));
+      hal::MagSample m;
+      m.t_ns = s.t_ns;
+      m.field_uT = Eigen::Vector3d(20, i == 2 ? nan : 0, 40);
+      ASSERT_TRUE((*rec)->record_mag(m));
+      hal::GnssFix g;
+      g.t_ns = s.t_ns;
+      g.lat_deg = i == 3 ? nan : 63.4;
+      g.lon_deg = i == 0 ? 200.0 : 10.3;  // out of range
+      ASSERT_TRUE((*rec)->record_gnss(g));
+    }
+    ASSERT_TRUE((*rec)->close().ok());
+  }
+  RecordingLogStats stats;
+  auto log = open_recording_log(path, &stats);
+  ASSERT_TRUE(log.ok()) << log.status().message();
+  EXPECT_EQ(log->imu.size(), 3u);
+  EXPECT_EQ(log->mag.size(), 3u);
+  EXPECT_EQ(log->gnss.size(), 2u);
+  EXPECT_EQ(stats.undecodable, 4u);
+  ::unlink(path.c_str());
+}
+
 TEST(SensorRecording, GivenFilesThatAreNotRecordingsThenTheErrorSaysSo) {
   auto missing = open_recording_log("/nonexistent/run.lcmlog");
   ASSERT_FALSE(missing.ok());

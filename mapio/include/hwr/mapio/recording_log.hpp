@@ -21,7 +21,7 @@ namespace hwr::mapio {
 
 struct RecordingLogStats {
   uint64_t events = 0;
-  uint64_t undecodable = 0;        // events whose message did not decode
+  uint64_t undecodable = 0;        // events whose message did not decode or held non-finite values
   uint64_t bad_images = 0;         // images of another size or encoding than the recording's camera
   uint64_t incomplete_frames = 0;  // a left image without its depth (or right, for stereo)
   uint64_t unknown_channels = 0;   // events on channels a recording does not use (kept out)
