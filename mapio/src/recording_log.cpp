@@ -12,6 +12,7 @@
 #include <opencv2/core.hpp>
 
 #include "hwr/mapio/lcm_link.hpp"
+#include "lcm_reader.hpp"
 #include "hwr_lcm/gnss_t.hpp"
 #include "hwr_lcm/image_t.hpp"
 #include "hwr_lcm/imu_t.hpp"
@@ -33,51 +34,86 @@ bool decode(const lcm::LogEvent& e, Msg* out) {
 
 bool same_channel(const lcm::LogEvent& e, const char* channel) { return e.channel == channel; }
 
+// image_t's fields before the pixels (mapio/lcm/image_t.lcm order).
+struct ImageHeader {
+  int64_t t_ns = 0;
+  int32_t width = 0, height = 0, row_stride = 0, size = 0;
+  int8_t encoding = 0;
+};
+constexpr size_t kImageHeaderBytes = 8 + 8 + 4 + 4 + 4 + 1 + 4;  // fingerprint ... size
+
+// Walks image_t's header with the bounded reader (lcm_reader.hpp), so the pixel count is checked
+// before LCM's generated decoder sizes its vector from it. pixel_bytes: what follows the header.
+core::Status walk_image_header(const uint8_t* data, size_t size, size_t pixel_bytes, ImageHeader* h) {
+  detail::BeReader r(data, size, "image_t");
+  HWR_RETURN_IF_ERROR(r.check_fingerprint(hwr_lcm::image_t::getHash()));
+  HWR_RETURN_IF_ERROR(r.i64(&h->t_ns, "t_ns"));
+  HWR_RETURN_IF_ERROR(r.i32(&h->width, "width"));
+  HWR_RETURN_IF_ERROR(r.i32(&h->height, "height"));
+  HWR_RETURN_IF_ERROR(r.i32(&h->row_stride, "row_stride"));
+  HWR_RETURN_IF_ERROR(r.need(1, "encoding"));
+  h->encoding = static_cast<int8_t>(data[r.pos()]);
+  HWR_RETURN_IF_ERROR(r.skip(1, "encoding"));
+  HWR_RETURN_IF_ERROR(r.i32(&h->size, "size"));
+  if (h->size < 0 || static_cast<size_t>(h->size) != pixel_bytes) {
+    return core::ParseError("image_t: size " + std::to_string(h->size) + " but " +
+                            std::to_string(pixel_bytes) + " pixel bytes follow");
+  }
+  return core::Status::Ok();
+}
+
+// image_t, header walked first (a damaged size would allocate gigabytes, or throw when negative).
+bool decode_image(const lcm::LogEvent& e, hwr_lcm::image_t* out) {
+  const auto* data = static_cast<const uint8_t*>(e.data);
+  const auto size = static_cast<size_t>(e.datalen);
+  ImageHeader h;
+  return size >= kImageHeaderBytes && walk_image_header(data, size, size - kImageHeaderBytes, &h).ok() &&
+         decode(e, out);
+}
+
+// recording_info_t, walked first: LCM's generated decoder copies length - 1 bytes of source_name, so a
+// length of 0 or less (a damaged file; found by fuzz_recording_log) throws std::length_error.
+bool decode_recording_info(const lcm::LogEvent& e, hwr_lcm::recording_info_t* out) {
+  detail::BeReader r(static_cast<const uint8_t*>(e.data), static_cast<size_t>(e.datalen), "recording_info_t");
+  return r.check_fingerprint(hwr_lcm::recording_info_t::getHash()).ok() && r.skip(8, "t_ns").ok() &&
+         r.string(static_cast<size_t>(e.datalen), "source_name").ok() && decode(e, out);
+}
+
 // LCM log event header (LCM "Log File format", big-endian): sync word 0xEDA1DA01, event number
 // (int64), timestamp (int64), channel length (int32), data length (int32), then channel and data.
 constexpr uint32_t kSyncWord = 0xEDA1DA01u;
 constexpr long kEventHeaderBytes = 28;
 
-uint32_t be32(const unsigned char* p) {
-  return (uint32_t{p[0]} << 24) | (uint32_t{p[1]} << 16) | (uint32_t{p[2]} << 8) | uint32_t{p[3]};
-}
+struct EventHeader {
+  int64_t timestamp_us = 0;
+  std::string channel;
+  long data_at = 0;  // file offset of the message
+  int32_t data_bytes = 0;
+};
 
-// image_t (mapio/lcm/image_t.lcm) with its pixel count checked against the event first: LCM's
-// generated decoder sizes the pixel vector from the message's own size field before it checks the
-// bytes are there, so a damaged size would allocate gigabytes (or throw, when negative).
-bool decode_image(const lcm::LogEvent& e, hwr_lcm::image_t* out) {
-  constexpr int kSizeFieldAt = 8 + 8 + 4 + 4 + 4 + 1;  // fingerprint t_ns width height row_stride encoding
-  if (e.datalen < kSizeFieldAt + 4) return false;
-  const auto size = static_cast<int32_t>(be32(static_cast<const unsigned char*>(e.data) + kSizeFieldAt));
-  if (size < 0 || size > e.datalen - kSizeFieldAt - 4) return false;
-  return decode(e, out);
-}
-
-// recording_info_t with its source_name length checked first: LCM's generated decoder copies
-// length - 1 bytes, so a length of 0 or less (a damaged file; found by fuzz_recording_log) throws
-// std::length_error out of the decoder.
-bool decode_recording_info(const lcm::LogEvent& e, hwr_lcm::recording_info_t* out) {
-  constexpr int kNameLengthAt = 8 + 8;  // fingerprint, t_ns
-  if (e.datalen < kNameLengthAt + 4) return false;
-  const auto length = static_cast<int32_t>(be32(static_cast<const unsigned char*>(e.data) + kNameLengthAt));
-  if (length < 1 || length > e.datalen - kNameLengthAt - 4) return false;
-  return decode(e, out);
-}
-
-// Whether the event header at offset is one LCM's reader can take whole: the sync word, a channel
-// name LCM accepts (1..999 bytes) and a data length that fits in the file. Checked before
-// readNextEvent, which would otherwise allocate whatever a damaged length says. Leaves the file at
-// offset.
-bool plausible_event_at(FILE* f, long offset, long file_size) {
-  unsigned char h[kEventHeaderBytes];
+// Reads the event header at offset and its channel name, if it is one LCM's reader can take whole:
+// the sync word, a channel name LCM accepts (1..999 bytes) and a data length that fits in the file.
+// Checked before readNextEvent, which would otherwise allocate whatever a damaged length says.
+// Leaves the file at offset.
+bool read_event_header(FILE* f, long offset, long file_size, EventHeader* h) {
+  uint8_t raw[kEventHeaderBytes];
   if (std::fseek(f, offset, SEEK_SET) != 0) return false;
-  const bool read = std::fread(h, 1, sizeof(h), f) == sizeof(h);
+  bool ok = std::fread(raw, 1, sizeof(raw), f) == sizeof(raw);
+  int32_t sync = 0, channel_bytes = 0;
+  int64_t eventnum = 0;
+  detail::BeReader r(raw, sizeof(raw), "LCM log event");
+  ok = ok && r.i32(&sync, "sync word").ok() && static_cast<uint32_t>(sync) == kSyncWord &&
+       r.i64(&eventnum, "event number").ok() && r.i64(&h->timestamp_us, "timestamp").ok() &&
+       r.i32(&channel_bytes, "channel length").ok() && r.i32(&h->data_bytes, "data length").ok() &&
+       channel_bytes > 0 && channel_bytes < 1000 && h->data_bytes >= 0 &&
+       static_cast<long>(h->data_bytes) <= file_size - offset - kEventHeaderBytes - channel_bytes;
+  if (ok) {
+    h->channel.resize(static_cast<size_t>(channel_bytes));
+    ok = std::fread(h->channel.data(), 1, h->channel.size(), f) == h->channel.size();
+    h->data_at = offset + kEventHeaderBytes + channel_bytes;
+  }
   std::fseek(f, offset, SEEK_SET);
-  if (!read || be32(h) != kSyncWord) return false;
-  const auto channel_bytes = static_cast<int32_t>(be32(h + 20));
-  const auto data_bytes = static_cast<int32_t>(be32(h + 24));
-  return channel_bytes > 0 && channel_bytes < 1000 && data_bytes >= 0 &&
-         static_cast<long>(data_bytes) <= file_size - offset - kEventHeaderBytes - channel_bytes;
+  return ok;
 }
 
 // After an event that is damaged or cut short, the position of the next event: the next sync word
@@ -107,9 +143,11 @@ struct RecordingFile {
   long file_size = 0;
   hwr_lcm::image_t image;  // scratch (the prefetch thread is the only caller)
 
+  EventHeader header;  // scratch
+
   // Reads the image event at offset into image; checks it is w x h of the encoding.
   core::Status read_image(long offset, int8_t encoding, size_t i, const char* what) {
-    if (!plausible_event_at(file->getFilePtr(), offset, file_size)) {
+    if (!read_event_header(file->getFilePtr(), offset, file_size, &header)) {
       return core::CorruptData("frame " + std::to_string(i) + ": its " + what + " image event is gone");
     }
     const lcm::LogEvent* e = file->readNextEvent();
@@ -188,7 +226,9 @@ core::Expected<hal::ReplayLog> open_recording_log(const std::string& path, Recor
   FILE* f = rec->file->getFilePtr();
   RecordingLogStats stats;
 
-  const lcm::LogEvent* e = plausible_event_at(f, 0, st.st_size) ? rec->file->readNextEvent() : nullptr;
+  EventHeader header;
+  const lcm::LogEvent* e =
+      read_event_header(f, 0, st.st_size, &header) ? rec->file->readNextEvent() : nullptr;
   hwr_lcm::recording_info_t info_msg;
   if (e == nullptr || !same_channel(*e, kChannelRecordingInfo) || !decode_recording_info(*e, &info_msg)) {
     return core::ParseError(path + ": not a sensor recording (its first event is not a " +
@@ -211,11 +251,37 @@ core::Expected<hal::ReplayLog> open_recording_log(const std::string& path, Recor
   hwr_lcm::imu_t imu{};
   hwr_lcm::mag_t mag{};
   hwr_lcm::gnss_t gnss{};
-  hwr_lcm::image_t image;
+  uint8_t image_header[kImageHeaderBytes];
   for (;;) {
     const long offset = std::ftell(f);
     if (offset < 0 || offset >= st.st_size) break;
-    e = plausible_event_at(f, offset, st.st_size) ? rec->file->readNextEvent() : nullptr;
+    const bool whole = read_event_header(f, offset, st.st_size, &header);
+    const bool left = header.channel == kChannelCamLeft, depth = header.channel == kChannelCamDepth;
+    if (whole && (left || depth || header.channel == kChannelCamRight)) {
+      // An image: indexed from its header, its pixels not read until the replay loads the frame.
+      ++stats.events;
+      ImageHeader h;
+      const size_t bytes = static_cast<size_t>(header.data_bytes);
+      const bool read = bytes >= kImageHeaderBytes && std::fseek(f, header.data_at, SEEK_SET) == 0 &&
+                        std::fread(image_header, 1, kImageHeaderBytes, f) == kImageHeaderBytes;
+      if (std::fseek(f, header.data_at + header.data_bytes, SEEK_SET) != 0) break;
+      if (!read || !walk_image_header(image_header, kImageHeaderBytes, bytes - kImageHeaderBytes, &h).ok() ||
+          header.timestamp_us != h.t_ns / 1000) {
+        ++stats.undecodable;
+        continue;
+      }
+      const int8_t encoding = left ? kBgr8 : depth ? kDepthMm16 : kMono8;
+      const int bpp = left ? 3 : depth ? 2 : 1;
+      if (h.encoding != encoding || h.width != K.width || h.height != K.height ||
+          h.row_stride != K.width * bpp || h.size != h.row_stride * h.height) {
+        ++stats.bad_images;
+        continue;
+      }
+      FrameRef& ref = frames[h.t_ns];
+      (left ? ref.left : depth ? ref.depth : ref.right) = offset;
+      continue;
+    }
+    e = whole ? rec->file->readNextEvent() : nullptr;
     if (e == nullptr) {
       // A damaged event header or a last event cut short: go on from the next sync word.
       const long next = next_sync_word(f, offset + 1);
@@ -271,22 +337,6 @@ core::Expected<hal::ReplayLog> open_recording_log(const std::string& path, Recor
       } else {
         ++stats.undecodable;
       }
-    } else if (same_channel(*e, kChannelCamLeft) || same_channel(*e, kChannelCamDepth) ||
-               same_channel(*e, kChannelCamRight)) {
-      if (!decode_image(*e, &image)) {
-        ++stats.undecodable;
-        continue;
-      }
-      const bool left = same_channel(*e, kChannelCamLeft), depth = same_channel(*e, kChannelCamDepth);
-      const int8_t encoding = left ? kBgr8 : depth ? kDepthMm16 : kMono8;
-      const int bpp = left ? 3 : depth ? 2 : 1;
-      if (image.encoding != encoding || image.width != K.width || image.height != K.height ||
-          image.row_stride != K.width * bpp || image.size != image.row_stride * image.height) {
-        ++stats.bad_images;
-        continue;
-      }
-      FrameRef& ref = frames[image.t_ns];
-      (left ? ref.left : depth ? ref.depth : ref.right) = offset;
     } else if (!same_channel(*e, kChannelRecordingInfo)) {
       ++stats.unknown_channels;
     }

@@ -9,6 +9,7 @@
 #include <opencv2/core.hpp>
 
 #include "hwr/mapio/lcm_link.hpp"
+#include "lcm_reader.hpp"
 #include "hwr_lcm/gnss_t.hpp"
 #include "hwr_lcm/image_t.hpp"
 #include "hwr_lcm/imu_t.hpp"
@@ -181,11 +182,7 @@ bool SensorRecorder::write_event(const char* channel, int64_t t_ns, const void* 
 
 template <class Msg>
 bool SensorRecorder::write_message(const char* channel, int64_t t_ns, const Msg& msg) {
-  const int n = msg.getEncodedSize();
-  if (n < 0) return false;
-  buf_.resize(static_cast<size_t>(n));
-  if (msg.encode(buf_.data(), 0, n) != n) return false;
-  return write_event(channel, t_ns, buf_.data(), buf_.size());
+  return detail::encode_lcm(msg, channel, &buf_).ok() && write_event(channel, t_ns, buf_.data(), buf_.size());
 }
 
 bool SensorRecorder::write_image(const char* channel, int64_t t_ns, const cv::Mat& image, int8_t encoding) {

@@ -1,8 +1,9 @@
 #pragma once
 // A sensor recording (sensor_recorder.hpp; `hwr-robot --record FILE`) opened for replay as a
 // hal::ReplayLog (`hwr-robot --source lcmlog:FILE`). The samples are read into memory at open; the
-// frames stay on disk: open() notes where each frame's three images are in the file, and the
-// replay's prefetch thread reads them back one frame at a time.
+// frames stay on disk: open() reads only each image event's header (where it is, its size and time;
+// the pixels are skipped), and the replay's prefetch thread reads them back one frame at a time.
+// An image whose pixels were damaged after its header is found when its frame is loaded.
 //
 // Bad input loses nothing it need not: an event that does not decode (a damaged file) or an image
 // of the wrong size or encoding is skipped and counted, a frame without its depth image is skipped,
