@@ -2,8 +2,8 @@
 # Installs what is missing, builds, and runs the pipeline as far as it exists:
 #   simulator (hwr-sim) → robot process (hwr-robot: HAL replay → fixed-rate scheduler → pose
 #   estimation → local maps and the map store → Draco chunks over LCM) → ground station
-#   (hwr-ground: receives, stores, writes PLY/PCD maps; the operator confirms a welding region over
-#   the link) → evaluation (trajectory ATE, plate AE) → second visit (relocalization, map update)
+#   (hwr-ground: receives, stores, writes PLY/PCD maps, serves the viewer page; the operator confirms
+#   a welding region over the link) → evaluation (trajectory ATE, plate AE) → second visit (relocalization, map update)
 # Robot and ground station talk UDP multicast inside a private network namespace (unshare -rn)
 # where the system allows one, else on this host only (ttl=0).
 # Outputs go to out/demo/ (override with HWR_DEMO_OUT=DIR). By default the first 60 s of the lab
@@ -20,18 +20,19 @@ case "${1:-}" in
   *) echo "demo: unknown option '$1' (use --duration S or --full)" >&2; exit 2 ;;
 esac
 
-toolchain/install-deps.sh --with-bench-peers
+toolchain/install-deps.sh --with-bench-peers --with-web --with-browser
+toolchain/build-web.sh
 cmake --preset host-release
 cmake --build --preset host-release --target hwr-sim hwr-robot hwr-ground hwr-eval
 bin=build/host-release/apps
 
 echo
-echo "== 1/5 simulator: the lab welding workshop with exact ground truth =="
+echo "== 1/6 simulator: the lab welding workshop with exact ground truth =="
 rm -rf "$out/sim-lab"
 "$bin/hwr-sim/hwr-sim" --scenario lab --out "$out/sim-lab" --threads 2 "${duration[@]}"
 
 echo
-echo "== 2/5 robot and ground station: pose estimation, local maps, the map store, and the map"
+echo "== 2/6 robot and ground station: pose estimation, local maps, the map store, and the map"
 echo "       streamed as Draco chunks over LCM to hwr-ground =="
 rm -rf "$out/map-store" "$out/ground"
 # Both programs in one function, run inside a private network namespace when possible.
@@ -80,11 +81,34 @@ else
 fi
 
 echo
-echo "== 3/5 evaluation: the estimated trajectory against the simulator's ground truth =="
+echo "== 3/6 ground-station viewer: hwr-ground --http serves the map, trajectory, welding regions and"
+echo "       link health as they arrived; headless Chromium renders the page =="
+# The live run above ran inside a private network namespace, so its page was not reachable from
+# here; hwr-ground serves the same state from what it stored (docs/ground_viewer.md).
+"$bin/hwr-ground/hwr-ground" --out "$out/ground" --link memq:// --status-interval 0 --http 127.0.0.1:0 \
+  > /dev/null 2> "$out/viewer-log.txt" &
+viewer=$!
+port=""
+for _ in $(seq 100); do
+  port=$(sed -n 's|.*viewer at http://127.0.0.1:\([0-9]*\)/.*|\1|p' "$out/viewer-log.txt" | head -1)
+  [[ -n "$port" ]] && break
+  sleep 0.1
+done
+if [[ -n "$port" ]] && node apps/hwr-ground/web/e2e/viewer_e2e.mjs --url "http://127.0.0.1:$port/" \
+     --screenshot "$out/viewer.png" --screenshot-only --min-segments 1 --min-detections 0; then
+  echo "viewer screenshot: $out/viewer.png"
+else
+  echo "(the viewer screenshot failed: see $out/viewer-log.txt)"
+fi
+kill -TERM "$viewer" 2>/dev/null || true
+wait "$viewer" 2>/dev/null || true
+
+echo
+echo "== 4/6 evaluation: the estimated trajectory against the simulator's ground truth =="
 "$bin/hwr-eval/hwr-eval" ate "$out/sim-lab/groundtruth.txt" "$out/trajectory.txt" | tee "$out/ate.txt"
 
 echo
-echo "== 4/5 evaluation: welding plates fitted in the map against the simulator's ground truth: on the"
+echo "== 5/6 evaluation: welding plates fitted in the map against the simulator's ground truth: on the"
 echo "       fine clouds of the welding regions (2 mm), then on the coarse map (2 cm voxels) =="
 "$bin/hwr-eval/hwr-eval" ae --groundtruth "$out/sim-lab/weld_groundtruth.yaml" --map "$out/map-store" \
   --truth-traj "$out/sim-lab/groundtruth.txt" | tee "$out/ae.txt"
@@ -92,7 +116,7 @@ echo "       fine clouds of the welding regions (2 mm), then on the coarse map (
   --align "$out/sim-lab/groundtruth.txt" "$out/trajectory.txt" | tee "$out/ae-coarse.txt"
 
 echo
-echo "== 5/5 second visit: the lab later (a plate moved, a box removed), started elsewhere; the robot"
+echo "== 6/6 second visit: the lab later (a plate moved, a box removed), started elsewhere; the robot"
 echo "       relocalizes against the map store of step 2 while it moves, then continues in its frame =="
 rm -rf "$out/revisit-store"
 "$bin/hwr-robot/hwr-robot" --source sim:scenarios/lab_revisit_short.yaml --quiet --prior-map "$out/map-store" \
@@ -131,6 +155,11 @@ demo outputs:
       the operator's view: detections.txt (the robot's welding regions as they arrived),
       journal.log (the "confirm 0" the demo sent and the robot's acknowledgement), the messages
       as received (detections/, commands/)
+  $out/viewer.png
+      the ground station's viewer page (hwr-ground --http) over what arrived, rendered by headless
+      Chromium; browse it yourself with
+        $bin/hwr-ground/hwr-ground --out $out/ground --link memq:// --http 8080
+      and http://127.0.0.1:8080/ (docs/ground_viewer.md)
   $out/ae.txt, $out/ae-coarse.txt
       welding-plate reconstruction error (AE) of that map: on the welding regions' fine clouds, and
       on the coarse map (docs/reconstruction.md)

@@ -15,7 +15,7 @@ packages=(
   libeigen3-dev libyaml-cpp-dev
   libopencv-core-dev libopencv-imgproc-dev libopencv-imgcodecs-dev libopencv-calib3d-dev
   libopencv-features2d-dev libopencv-flann-dev libopencv-dnn-dev
-  libusb-1.0-0-dev libflann-dev libdraco-dev liblcm-dev libembree-dev
+  libusb-1.0-0-dev libflann-dev libdraco-dev liblcm-dev libembree-dev libcpp-httplib-dev nlohmann-json3-dev
   libgtest-dev libgmock-dev libbenchmark-dev
 )
 

@@ -1,6 +1,6 @@
 // hwr-ground: the ground station (issue #5 item 4, issue #7 item 4; docs/mapio.md).
 //   hwr-ground --out DIR [--link URL] [--status-interval S] [--exit-after-idle S] [--no-pcd]
-//              [--operator-input FILE] [--operator-robot ID]
+//              [--operator-input FILE] [--operator-robot ID] [--http [HOST:]PORT] [--web-root DIR]
 // Receives the robot's map chunks over LCM, verifies and stores them (DIR/<robot>/<run>/seg_*/),
 // acknowledges them, writes each completed segment as PLY and PCD (DIR/<robot>/<run>/maps/) and, on
 // exit, the merged map (maps/merged.ply, merged.pcd). Restarting on the same DIR resumes: what is
@@ -12,6 +12,10 @@
 // operator_input.hpp; a bad line is reported with its number and skipped. Commands go to the line's
 // --robot ID, else --operator-robot ID, else the only robot whose detections arrived. Pending
 // commands are re-sent after a restart.
+// Viewer (issue #9; docs/ground_viewer.md): with --http, a web page on HOST:PORT (loopback unless a
+// HOST is given) shows the map as it arrives, the robots' trajectories, poses (HWR_POSE), scheduler and
+// link health (HWR_STATUS), detections and keyframe images (HWR_KEYFRAME_IMAGE), and sends the
+// operator's commands. Telemetry is kept under DIR/<robot>/telemetry/ (mapio/ground_telemetry.hpp).
 // Stops on SIGINT/SIGTERM, or with --exit-after-idle S once S seconds pass without a new chunk
 // (counted from the start when none arrives). Exit: 0 ok, 1 runtime error, 2 usage.
 
@@ -19,18 +23,22 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <filesystem>
 #include <memory>
 #include <string>
 #include <utility>
 #include <vector>
 
 #include <chrono>
+#include <mutex>
 
 #include "hwr/core/log.hpp"
 #include "hwr/mapio/ground_station.hpp"
 #include "hwr/mapio/lcm_link.hpp"
+#include "hwr/mapio/ground_telemetry.hpp"
 #include "hwr/mapio/operator_console.hpp"
 #include "operator_input.hpp"
+#include "viewer_server.hpp"
 
 namespace {
 
@@ -39,12 +47,19 @@ volatile std::sig_atomic_t g_stop = 0;
 constexpr int64_t g_force_ack_ns = 1'000'000'000'000;
 void on_signal(int) { g_stop = 1; }
 
+// The page toolchain/build-web.sh builds: $HWR_WEB_ROOT, else build/web/dist in the source tree.
+std::string default_web_root() {
+  if (const char* env = std::getenv("HWR_WEB_ROOT"); env != nullptr && env[0] != '\0') return env;
+  return std::string(HWR_SOURCE_DIR) + "/build/web/dist";
+}
+
 int usage(const char* msg) {
   if (msg != nullptr) std::fprintf(stderr, "hwr-ground: %s\n", msg);
   std::fprintf(
       stderr,
       "usage: hwr-ground --out DIR [--link URL] [--status-interval S] [--exit-after-idle S] [--no-pcd]\n"
-      "                  [--operator-input FILE] [--operator-robot ID]\n"
+      "                  [--operator-input FILE] [--operator-robot ID] [--http [HOST:]PORT] [--web-root "
+      "DIR]\n"
       "  --link URL            LCM URL (default %s)\n"
       "  --status-interval S   seconds between status lines (default 1; 0: none)\n"
       "  --exit-after-idle S   exit S seconds after the last new chunk (or after start, if none)\n"
@@ -54,8 +69,11 @@ int usage(const char* msg) {
       "                          [--robot ID] move ID CX CY CZ SX SY SZ [QW QX QY QZ]   (world, metres)\n"
       "                          [--robot ID] add KEYFRAME_T_NS X Y W H [CX CY CZ SX SY SZ]   (pixels)\n"
       "  --operator-robot ID   robot of the commands without --robot (default: the only robot whose\n"
-      "                        detections arrived)\n",
-      hwr::mapio::kDefaultLinkUrl);
+      "                        detections arrived)\n"
+      "  --http [HOST:]PORT    serve the viewer page (docs/ground_viewer.md) on HOST:PORT; HOST defaults to\n"
+      "                        127.0.0.1 (loopback only); PORT 0 picks a free one\n"
+      "  --web-root DIR        the built page (default %s; toolchain/build-web.sh)\n",
+      hwr::mapio::kDefaultLinkUrl, default_web_root().c_str());
   return 2;
 }
 
@@ -136,7 +154,7 @@ int64_t now_ns() {
 
 int main(int argc, char** argv) {
   std::string out, url = hwr::mapio::kDefaultLinkUrl;
-  std::string operator_input_path, operator_robot;
+  std::string operator_input_path, operator_robot, http, web_root = default_web_root();
   double status_s = 1.0, idle_exit_s = -1.0;
   bool pcd = true;
   for (int i = 1; i < argc; ++i) {
@@ -156,6 +174,10 @@ int main(int argc, char** argv) {
       operator_robot = argv[++i];
       const hwr::core::Status st = hwr::mapio::GroundStore::validate_robot_id(operator_robot);
       if (!st.ok()) return usage(("--operator-robot: " + st.message()).c_str());
+    } else if (a == "--http" && has_value) {
+      http = argv[++i];
+    } else if (a == "--web-root" && has_value) {
+      web_root = argv[++i];
     } else if (a == "--no-pcd") {
       pcd = false;
     } else if (a == "--help" || a == "-h") {
@@ -165,6 +187,13 @@ int main(int argc, char** argv) {
     }
   }
   if (out.empty()) return usage("--out DIR is required");
+  hwr::ground::ViewerServerConfig viewer_config;
+  viewer_config.web_root = web_root;
+  if (!http.empty()) {
+    const hwr::core::Status st =
+        hwr::ground::parse_http_address(http, &viewer_config.host, &viewer_config.port);
+    if (!st.ok()) return usage(st.message().c_str());
+  }
 
   hwr::mapio::GroundStationConfig config;
   config.out_dir = out;
@@ -182,6 +211,16 @@ int main(int argc, char** argv) {
   hwr::mapio::OperatorConsole& console = *opened_console.value();
   for (const std::string& note : console.open_report().notes)
     HWR_LOG_WARN("ground", "operator: %s", note.c_str());
+  hwr::mapio::GroundTelemetryConfig telemetry_config;
+  telemetry_config.out_dir = out;
+  auto opened_telemetry = hwr::mapio::GroundTelemetry::open(telemetry_config);
+  if (!opened_telemetry.ok()) {
+    std::fprintf(stderr, "hwr-ground: %s\n", opened_telemetry.status().message().c_str());
+    return 1;
+  }
+  hwr::mapio::GroundTelemetry& telemetry = *opened_telemetry.value();
+  for (const std::string& note : telemetry.open_notes())
+    HWR_LOG_WARN("ground", "telemetry: %s", note.c_str());
   std::unique_ptr<hwr::ground::OperatorInput> input;
   if (!operator_input_path.empty()) {
     auto opened_input = hwr::ground::OperatorInput::open(operator_input_path);
@@ -198,12 +237,56 @@ int main(int argc, char** argv) {
     return 1;
   }
   hwr::mapio::GroundStation& g = *station.value();
-  link->subscribe(hwr::mapio::kChannelMapChunk,
-                  [&](const uint8_t* d, size_t n) { g.on_chunk_message(d, n, now_ns()); });
-  link->subscribe(hwr::mapio::kChannelDetection,
-                  [&](const uint8_t* d, size_t n) { console.on_detection_message(d, n, now_ns()); });
-  link->subscribe(hwr::mapio::kChannelOperatorAck,
-                  [&](const uint8_t* d, size_t n) { console.on_ack_message(d, n, now_ns()); });
+  // The viewer's HTTP threads read the state and send commands under this lock; the loop below holds
+  // it whenever it changes the state (not while it waits for messages).
+  std::mutex state_mutex;
+  using Guard = std::lock_guard<std::mutex>;
+  link->subscribe(hwr::mapio::kChannelMapChunk, [&](const uint8_t* d, size_t n) {
+    const Guard lock(state_mutex);
+    g.on_chunk_message(d, n, now_ns());
+  });
+  link->subscribe(hwr::mapio::kChannelDetection, [&](const uint8_t* d, size_t n) {
+    const Guard lock(state_mutex);
+    console.on_detection_message(d, n, now_ns());
+  });
+  link->subscribe(hwr::mapio::kChannelOperatorAck, [&](const uint8_t* d, size_t n) {
+    const Guard lock(state_mutex);
+    console.on_ack_message(d, n, now_ns());
+  });
+  link->subscribe(hwr::mapio::kChannelPose, [&](const uint8_t* d, size_t n) {
+    const Guard lock(state_mutex);
+    telemetry.on_pose_message(d, n);
+  });
+  link->subscribe(hwr::mapio::kChannelStatus, [&](const uint8_t* d, size_t n) {
+    const Guard lock(state_mutex);
+    telemetry.on_status_message(d, n, now_ns());
+  });
+  link->subscribe(hwr::mapio::kChannelKeyframeImage, [&](const uint8_t* d, size_t n) {
+    const Guard lock(state_mutex);
+    telemetry.on_keyframe_image_message(d, n);
+  });
+  std::unique_ptr<hwr::ground::ViewerServer> viewer;
+  if (!http.empty()) {
+    auto started = hwr::ground::ViewerServer::start(viewer_config, g, console, telemetry, state_mutex);
+    if (!started.ok()) {
+      std::fprintf(stderr, "hwr-ground: %s\n", started.status().message().c_str());
+      return 1;
+    }
+    viewer = std::move(started.value());
+    if (!hwr::ground::is_loopback_host(viewer_config.host)) {
+      std::fprintf(
+          stderr,
+          "hwr-ground: warning: the viewer listens on %s, not loopback: anyone who reaches it can send "
+          "operator commands\n",
+          viewer_config.host.c_str());
+    }
+    const bool ipv6 = viewer_config.host.find(':') != std::string::npos;
+    std::fprintf(stderr, "hwr-ground: viewer at http://%s%s%s:%d/%s\n", ipv6 ? "[" : "",
+                 viewer_config.host.c_str(), ipv6 ? "]" : "", viewer->port(),
+                 std::filesystem::exists(web_root + "/index.html")
+                     ? ""
+                     : (" (page not built under " + web_root + ": run toolchain/build-web.sh)").c_str());
+  }
   std::signal(SIGINT, on_signal);
   std::signal(SIGTERM, on_signal);
   std::fprintf(stderr, "hwr-ground: listening on %s, storing under %s (%lld chunks already stored)\n",
@@ -226,6 +309,7 @@ int main(int argc, char** argv) {
       break;
     }
     const int64_t t = now_ns();
+    std::unique_lock<std::mutex> lock(state_mutex);
     g.service(t, [&](const hwr_lcm::chunk_ack_t& ack) {
       const hwr::core::Status st = link->publish(hwr::mapio::kChannelMapAck, ack);
       if (!st.ok()) HWR_LOG_WARN("ground", "ack not sent: %s", st.message().c_str());
@@ -255,6 +339,7 @@ int main(int argc, char** argv) {
       if (!st.ok()) HWR_LOG_ERROR("ground", "writing segment maps: %s", st.message().c_str());
       last_maps = t;
     }
+    lock.unlock();
     if (status_s > 0 && (t - last_status) * 1e-9 >= status_s) {
       std::fprintf(stderr, "hwr-ground: %s\n", g.status_line(t).c_str());
       last_status = t;
@@ -263,6 +348,7 @@ int main(int argc, char** argv) {
     const int64_t idle_since = g.stats().last_chunk_ns > 0 ? g.stats().last_chunk_ns : started_ns;
     if (idle_exit_s >= 0 && (t - idle_since) * 1e-9 >= idle_exit_s) break;
   }
+  viewer.reset();  // no more HTTP threads: the state is this thread's alone from here
   // Last acks, then the maps.
   g.service(now_ns() + 1'000'000'000'000,
             [&](const hwr_lcm::chunk_ack_t& ack) { (void)link->publish(hwr::mapio::kChannelMapAck, ack); });
@@ -282,6 +368,12 @@ int main(int argc, char** argv) {
   std::printf("operator_detections=%lld\noperator_commands_sent=%lld\noperator_commands_pending=%lld\n",
               static_cast<long long>(detections), static_cast<long long>(console.stats().commands_sent),
               static_cast<long long>(console.pending_commands()));
+  const hwr::mapio::GroundTelemetryStats& ts = telemetry.stats();
+  std::printf(
+      "telemetry_poses=%lld\ntelemetry_statuses=%lld\ntelemetry_keyframe_images=%lld\n"
+      "telemetry_rejected=%lld\n",
+      static_cast<long long>(ts.poses), static_cast<long long>(ts.statuses),
+      static_cast<long long>(ts.keyframe_images), static_cast<long long>(ts.rejected));
   std::printf("maps under %s/<robot>/<run>/maps (segment_*.ply/.pcd, merged.ply/.pcd)\n", out.c_str());
   return rc;
 }

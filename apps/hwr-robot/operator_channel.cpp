@@ -12,6 +12,8 @@ namespace {
 
 // The whole list goes out again this often: a ground station that (re)started meanwhile catches up.
 constexpr int64_t kRepublishNs = 5'000'000'000;
+// The newest keyframe's image goes to the ground station at most this often.
+constexpr int64_t kKeyframeImagePeriodNs = 2'000'000'000;
 
 // The image rectangle of a box (T_cam_box, half sizes) on its keyframe: its corners in front of the
 // camera projected, clipped to the image. Empty when no corner is in front.
@@ -114,6 +116,36 @@ void OperatorChannel::step(recon::FineRegionMap* fine, const estimation::Keyfram
     }
   }
   publish(now_ns);
+  send_keyframe_images(keyframes, now_ns);
+}
+
+// The images of the keyframes the list's entries were seen on, once each while the keyframe store
+// still holds them, and the newest keyframe every kKeyframeImagePeriodNs: what the operator checks a
+// box against and draws new regions on (docs/ground_viewer.md). Only a keyframe whose images are kept
+// can take an added region (lift_drawn), so these are the ones worth drawing on.
+void OperatorChannel::send_keyframe_images(const estimation::KeyframeStore& keyframes, int64_t now_ns) {
+  if (streamer_ == nullptr || keyframes.empty()) return;
+  auto send = [&](int id) {
+    const estimation::Keyframe* kf = keyframes.get(id);
+    const cv::Mat* bgr = keyframes.bgr(id);
+    if (kf == nullptr || bgr == nullptr || bgr->empty() || !images_sent_.insert(kf->t_ns).second) return;
+    streamer_->post_keyframe_image(kf->t_ns, *bgr);
+    ++counters_.keyframe_images;
+  };
+  for (int id = keyframes.oldest_id(); id <= keyframes.newest_id(); ++id) {
+    const estimation::Keyframe* kf = keyframes.get(id);
+    if (kf == nullptr || images_sent_.count(kf->t_ns) > 0) continue;
+    for (const detect::LedgerEntry& e : ledger_.entries()) {
+      if (e.keyframe_t_ns == kf->t_ns) {
+        send(id);
+        break;
+      }
+    }
+  }
+  if (last_image_ns_ < 0 || now_ns - last_image_ns_ >= kKeyframeImagePeriodNs) {
+    last_image_ns_ = now_ns;
+    send(keyframes.newest_id());
+  }
 }
 
 // Entries placed in this run's world become regions of the fine map again (not the rejected ones:

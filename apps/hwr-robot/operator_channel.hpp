@@ -8,6 +8,7 @@
 
 #include <cstdint>
 #include <optional>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -30,6 +31,7 @@ struct OperatorChannelCounters {
   uint64_t duplicates_merged = 0;      // ... of them, found again before relocalizing: merged
   uint64_t save_errors = 0;
   uint64_t published = 0;
+  uint64_t keyframe_images = 0;  // keyframe images handed to the link (HWR_KEYFRAME_IMAGE)
 };
 
 class OperatorChannel {
@@ -70,6 +72,7 @@ class OperatorChannel {
                   const Eigen::Isometry3d& T_map_world, Eigen::Isometry3d* T_map_box,
                   Eigen::Vector3d* half_size_m);
   void publish(int64_t now_ns);
+  void send_keyframe_images(const estimation::KeyframeStore& keyframes, int64_t now_ns);
 
   detect::DetectionLedger ledger_;
   hal::PinholeIntrinsics K_;
@@ -87,6 +90,8 @@ class OperatorChannel {
   detect::SeamFusion fusion_;
   std::vector<detect::FusedSeam> fused_;  // fusion_.fused() after the last new detection
   bool fusion_changed_ = false;
+  std::set<int64_t> images_sent_;  // keyframe t_ns whose image went to the link
+  int64_t last_image_ns_ = -1;
 };
 
 }  // namespace hwr::robot

@@ -5,12 +5,10 @@
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
-#include <unordered_map>
-
-#include <Eigen/Geometry>
 
 #include "hwr/core/log.hpp"
 #include "hwr/mapio/cloud_writers.hpp"
+#include "hwr/mapio/world_cloud.hpp"
 
 namespace hwr::mapio {
 namespace {
@@ -18,47 +16,6 @@ namespace {
 core::Status make_dir(const std::string& path) {
   if (::mkdir(path.c_str(), 0755) != 0 && errno != EEXIST)
     return core::IoError("cannot create " + path + ": " + std::strerror(errno));
-  return core::Status::Ok();
-}
-
-// Points of one segment version in the world frame; a repeated id keeps the later chunk's point.
-struct WorldCloud {
-  std::vector<float> xyz;
-  std::vector<uint8_t> rgb;
-};
-
-core::Status assemble(const std::vector<hwr_lcm::map_chunk_t>& chunks, const ChunkDecodeLimits& limits,
-                      DecodedChunk* scratch, WorldCloud* out) {
-  if (chunks.empty()) return core::Status::Ok();
-  const hwr_lcm::map_chunk_t& latest = chunks.back();  // ordered by chunk_index
-  Eigen::Matrix4d T = Eigen::Matrix4d::Identity();
-  for (int r = 0; r < 3; ++r)
-    for (int c = 0; c < 4; ++c) T(r, c) = latest.T_world_segment[4 * r + c];
-  const Eigen::Matrix3f R = T.topLeftCorner<3, 3>().cast<float>();
-  const Eigen::Vector3f t = T.topRightCorner<3, 1>().cast<float>();
-  std::unordered_map<uint32_t, size_t> index_of_id;
-  for (const hwr_lcm::map_chunk_t& c : chunks) {
-    if (c.num_points == 0) continue;
-    HWR_RETURN_IF_ERROR(decode_chunk(c.payload.data(), c.payload.size(), c.num_points, limits, scratch));
-    for (size_t i = 0; i < scratch->points.size(); ++i) {
-      const ChunkPoint& p = scratch->points[i];
-      const Eigen::Vector3f w = R * Eigen::Vector3f(p.x_m, p.y_m, p.z_m) + t;
-      size_t at = out->xyz.size() / 3;
-      if (!scratch->ids.empty()) {
-        auto [it, inserted] = index_of_id.emplace(scratch->ids[i], at);
-        if (!inserted) at = it->second;
-      }
-      if (at == out->xyz.size() / 3) {
-        out->xyz.insert(out->xyz.end(), {w.x(), w.y(), w.z()});
-        out->rgb.insert(out->rgb.end(), {p.r, p.g, p.b});
-      } else {
-        for (int k = 0; k < 3; ++k) out->xyz[3 * at + k] = w[k];
-        out->rgb[3 * at] = p.r;
-        out->rgb[3 * at + 1] = p.g;
-        out->rgb[3 * at + 2] = p.b;
-      }
-    }
-  }
   return core::Status::Ok();
 }
 
@@ -167,7 +124,7 @@ core::Status GroundStation::write_maps(bool merged) {
       if (w != written_.end() && w->second == s.chunk_count) continue;
       WorldCloud cloud;
       if (!note(store_.load_segment(robot, run_id, s.segment_id, s.version, &chunks))) continue;
-      if (!note(assemble(chunks, config_.decode, &decoded_, &cloud))) continue;
+      if (!note(assemble_world_cloud(chunks, config_.decode, &decoded_, &cloud))) continue;
       char name[64];
       std::snprintf(name, sizeof(name), "/segment_%06d_v%d", s.segment_id, s.version);
       const size_t n = cloud.xyz.size() / 3;
@@ -181,7 +138,7 @@ core::Status GroundStation::write_maps(bool merged) {
     if (!merged) continue;
     for (const auto& [id, s] : latest) {
       if (!note(store_.load_segment(robot, run_id, s.segment_id, s.version, &chunks))) continue;
-      note(assemble(chunks, config_.decode, &decoded_, &all));
+      note(assemble_world_cloud(chunks, config_.decode, &decoded_, &all));
     }
     const size_t n = all.xyz.size() / 3;
     note(write_ply(dir + "/merged.ply", all.xyz.data(), all.rgb.data(), nullptr, n));

@@ -29,6 +29,8 @@ constexpr char kLockName[] = ".ground_store.lock";
 // What the operator console (operator_console.hpp) keeps beside the runs: not the store's, not noted.
 constexpr char kOperatorLockName[] = ".operator_console.lock";
 constexpr char kOperatorDirName[] = "operator";
+// What the viewer's telemetry (ground_telemetry.hpp) keeps beside the runs.
+constexpr char kTelemetryDirName[] = "telemetry";
 constexpr char kTmpSuffix[] = ".tmp";  // core::write_file_atomic's temp name is PATH + ".tmp"
 constexpr char kCorruptSuffix[] = ".corrupt";
 constexpr size_t kMaxRobotIdChars = 64;
@@ -264,7 +266,9 @@ core::Status GroundStore::State::scan() {
     std::vector<fs::directory_entry> run_dirs;
     HWR_RETURN_IF_ERROR(list_dir(robot.path().string(), &run_dirs));
     for (const auto& run : run_dirs) {
-      if (run.path().filename() == kOperatorDirName && is_dir(run)) continue;
+      if ((run.path().filename() == kOperatorDirName || run.path().filename() == kTelemetryDirName) &&
+          is_dir(run))
+        continue;
       int64_t run_id = 0;
       if (!is_dir(run) || !parse_run_dir(run.path().filename().string(), &run_id)) {
         note(run.path().string() + ": not a run folder, ignored");

@@ -11,6 +11,9 @@
 #include <utility>
 #include <vector>
 
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
 #include "hwr/core/log.hpp"
 #include "hwr/core/object_pool.hpp"
 #include "hwr/core/spsc_ring.hpp"
@@ -18,6 +21,8 @@
 #include "hwr/mapio/ground_store.hpp"
 #include "hwr/mapio/lcm_link.hpp"
 #include "hwr/mapio/operator_wire.hpp"
+#include "hwr/mapio/telemetry_wire.hpp"
+#include "hwr_lcm/keyframe_image_t.hpp"
 #include "hwr_lcm/pose_t.hpp"
 
 namespace hwr::mapio {
@@ -98,7 +103,11 @@ struct MapStreamer::Impl {
   std::deque<hwr_lcm::detection_t> detections_out;
   std::deque<hwr_lcm::command_ack_t> acks_out;
   std::deque<hwr_lcm::operator_command_t> commands_in;
-  hwr_lcm::operator_command_t command_scratch;  // streamer thread
+  static constexpr size_t kMaxImagesWaiting = 4;
+  std::deque<std::pair<int64_t, cv::Mat>> images_out;  // keyframe_t_ns, BGR
+  hwr_lcm::keyframe_image_t image_msg;                 // streamer thread
+  std::vector<uint8_t> jpeg;                           // streamer thread
+  hwr_lcm::operator_command_t command_scratch;         // streamer thread
   std::thread thread;
   std::atomic<bool> stop{false};
   std::atomic<int64_t> submitted{0};    // batches and owed completions handed over (the next seq)
@@ -311,8 +320,48 @@ struct MapStreamer::Impl {
         static_cast<int64_t>(detections.size() + acks.size()) - published_detections - published_acks;
   }
 
+  // One keyframe image as JPEG on HWR_KEYFRAME_IMAGE (telemetry_wire.hpp); false when it failed.
+  bool publish_keyframe_image(int64_t keyframe_t_ns, const cv::Mat& bgr) {
+    cv::Mat scaled = bgr;
+    if (bgr.cols > config.keyframe_image_max_width) {
+      const double f = static_cast<double>(config.keyframe_image_max_width) / bgr.cols;
+      cv::resize(bgr, scaled, cv::Size(), f, f, cv::INTER_AREA);
+    }
+    if (!cv::imencode(".jpg", scaled, jpeg, {cv::IMWRITE_JPEG_QUALITY, config.keyframe_jpeg_quality}))
+      return false;
+    image_msg.t_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(
+                         std::chrono::steady_clock::now().time_since_epoch())
+                         .count();
+    image_msg.robot_id = robot_id_;
+    image_msg.run_id = run_id_;
+    image_msg.keyframe_t_ns = keyframe_t_ns;
+    image_msg.width = bgr.cols;
+    image_msg.height = bgr.rows;
+    image_msg.jpeg_width = scaled.cols;
+    image_msg.jpeg_height = scaled.rows;
+    image_msg.size = static_cast<int32_t>(jpeg.size());
+    image_msg.jpeg.assign(jpeg.begin(), jpeg.end());
+    return encode_keyframe_image(image_msg, &wire).ok() &&
+           link.publish_bytes(kChannelKeyframeImage, wire.data(), wire.size()).ok();
+  }
+
+  void publish_keyframe_images() {
+    std::deque<std::pair<int64_t, cv::Mat>> images;
+    {
+      std::lock_guard<std::mutex> lock(mu);
+      if (images_out.empty()) return;
+      images.swap(images_out);
+    }
+    int64_t published = 0;
+    for (const auto& [t_ns, bgr] : images) published += publish_keyframe_image(t_ns, bgr) ? 1 : 0;
+    std::lock_guard<std::mutex> lock(mu);
+    stats.keyframe_images_published += published;
+    stats.keyframe_images_dropped += static_cast<int64_t>(images.size()) - published;
+  }
+
   void publish_telemetry() {
     publish_operator_messages();
+    publish_keyframe_images();
     PoseSample p;
     int64_t published = 0;
     while (poses.try_pop(p)) {
@@ -494,6 +543,18 @@ void MapStreamer::post_pose(int64_t t_ns, const Eigen::Isometry3d& T_world_cam, 
     for (int c = 0; c < 4; ++c) p.T_world_cam[4 * r + c] = T_world_cam.matrix()(r, c);
   p.tracking = tracking;
   impl_->poses.push_drop_oldest(p);
+}
+
+void MapStreamer::post_keyframe_image(int64_t keyframe_t_ns, const cv::Mat& bgr) {
+  if (bgr.empty() || bgr.type() != CV_8UC3) return;
+  cv::Mat copy = bgr.clone();
+  Impl& m = *impl_;
+  std::lock_guard<std::mutex> lock(m.mu);
+  if (m.images_out.size() >= Impl::kMaxImagesWaiting) {
+    m.images_out.pop_front();
+    ++m.stats.keyframe_images_dropped;
+  }
+  m.images_out.emplace_back(keyframe_t_ns, std::move(copy));
 }
 
 void MapStreamer::post_status(const hwr_lcm::status_t& status) {

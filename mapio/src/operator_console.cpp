@@ -397,7 +397,10 @@ void OperatorConsole::on_detection_message(const uint8_t* data, size_t size, int
   if (robot_it != robots_.end()) {
     const auto& known = robot_it->second.detections;
     const auto it = known.find(d.detection_id);
-    if (it != known.end() && d.t_ns <= it->second.t_ns) {
+    // A later run's list replaces the earlier one's entry of the same id (run ids are start times; a
+    // replayed run's t_ns repeat the last run's); within a run, only a newer message does.
+    if (it != known.end() &&
+        (d.run_id < it->second.run_id || (d.run_id == it->second.run_id && d.t_ns <= it->second.t_ns))) {
       ++stats_.detections_ignored;  // a repeat, or older than what is stored
       return;
     }

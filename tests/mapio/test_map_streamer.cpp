@@ -21,10 +21,14 @@
 #include <thread>
 #include <vector>
 
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
 #include "hwr/mapio/ground_station.hpp"
 #include "hwr/mapio/ground_store.hpp"
 #include "hwr/mapio/lcm_link.hpp"
 #include "hwr/mapio/map_streamer.hpp"
+#include "hwr/mapio/telemetry_wire.hpp"
 #include "private_netns.hpp"
 
 namespace hwr::mapio {
@@ -247,6 +251,44 @@ TEST(MapStreamer, GivenTheCompletingBatchRefusedThenTheGroundStationStillSeesThe
   streamer->reset();
   ground->reset();
   fs::remove_all(out);
+}
+
+TEST(MapStreamer, GivenKeyframeImagesThenLargeOnesDownscaledJpegsSentAndAFullQueueDropsTheOldest) {
+  if (!test::in_private_netns()) {
+    HWR_RUN_IN_PRIVATE_NETNS();
+    return;
+  }
+  ASSERT_TRUE(test::setup_private_loopback());
+  auto listener = LcmLink::open(kUdpUrl);
+  ASSERT_TRUE(listener.ok()) << listener.status().message();
+  std::vector<hwr_lcm::keyframe_image_t> received;
+  listener->subscribe(kChannelKeyframeImage, [&](const uint8_t* d, size_t n) {
+    hwr_lcm::keyframe_image_t m;
+    ASSERT_TRUE(decode_keyframe_image(d, n, &m).ok());
+    received.push_back(m);
+  });
+  auto streamer = MapStreamer::start(kUdpUrl, "robot-images", 9, MapStreamerConfig{});
+  ASSERT_TRUE(streamer.ok()) << streamer.status().message();
+  cv::Mat big(720, 1280, CV_8UC3, cv::Scalar(30, 60, 90));
+  cv::rectangle(big, cv::Rect(100, 100, 400, 300), cv::Scalar(250, 250, 250), cv::FILLED);
+  (*streamer)->post_keyframe_image(1000, big);
+  (*streamer)->post_keyframe_image(2000, cv::Mat(48, 64, CV_8UC3, cv::Scalar(0, 0, 255)));
+  (*streamer)->post_keyframe_image(3000, cv::Mat(48, 64, CV_32FC1));  // not BGR: ignored
+  for (int i = 0; i < 100 && received.size() < 2; ++i) ASSERT_TRUE(listener->handle(50).ok());
+  ASSERT_EQ(received.size(), 2u);
+  EXPECT_EQ(received[0].robot_id, "robot-images");
+  EXPECT_EQ(received[0].run_id, 9);
+  EXPECT_EQ(received[0].keyframe_t_ns, 1000);
+  EXPECT_EQ(received[0].width, 1280);  // box_px stays in the keyframe's pixels
+  EXPECT_EQ(received[0].jpeg_width, 640);
+  EXPECT_EQ(received[0].jpeg_height, 360);
+  const cv::Mat decoded = cv::imdecode(received[0].jpeg, cv::IMREAD_COLOR);
+  ASSERT_EQ(decoded.cols, 640);
+  EXPECT_NEAR(decoded.at<cv::Vec3b>(100, 120)[0], 250, 8);  // inside the white rectangle, scaled by 1/2
+  EXPECT_NEAR(decoded.at<cv::Vec3b>(300, 500)[2], 90, 8);
+  EXPECT_EQ(received[1].jpeg_width, 64);
+  EXPECT_EQ((*streamer)->stats().keyframe_images_published, 2);
+  EXPECT_EQ((*streamer)->stats().keyframe_images_dropped, 0);
 }
 
 }  // namespace

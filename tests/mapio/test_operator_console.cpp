@@ -1,7 +1,7 @@
 // The ground station's operator console (mapio/operator_console.hpp): the detection list it keeps
-// (newest t_ns wins), commands persisted as pending and re-published until an ack arrives, acks
-// matched once, everything restored after the console is destroyed and reopened on the same folder,
-// damaged files set aside with a note, and a whole operator round trip over LCM's memq:// transport
+// (the latest run, then the newest t_ns wins), commands persisted as pending and re-published until an ack
+// arrives, acks matched once, everything restored after the console is destroyed and reopened on the same
+// folder, damaged files set aside with a note, and a whole operator round trip over LCM's memq:// transport
 // against a minimal robot written here (the real one is hwr-robot's MapStreamer).
 
 #include <gtest/gtest.h>
@@ -132,6 +132,29 @@ TEST(OperatorConsole, GivenNewerAndOlderVersionsThenNewestTnsWins) {
   EXPECT_EQ(c->stats().detections_ignored, 2);
   EXPECT_NE(read_text(c->operator_dir("hwr-0") + "/detections.txt").find("4 geometry confirmed"),
             std::string::npos);
+}
+
+TEST(OperatorConsole, GivenALaterRunWithEarlierTimestampsThenItsDetectionReplacesTheEarlierRuns) {
+  // A replayed or simulated run starts its clock where the last one did: its t_ns repeat, its run_id
+  // (the start time) is later. Its detection 4 is another region and must replace run 1's.
+  TempDir tmp;
+  auto c = open_ok(tmp.file("out"));
+  ASSERT_TRUE(c);
+  hwr_lcm::detection_t first = make_detection(4, 3000, 1);
+  first.run_id = 100;
+  give(*c, first);
+  hwr_lcm::detection_t later_run = make_detection(4, 2000, 0);
+  later_run.run_id = 200;
+  give(*c, later_run);
+  hwr_lcm::detection_t late_from_the_first = make_detection(4, 5000, 2);
+  late_from_the_first.run_id = 100;
+  give(*c, late_from_the_first);  // an earlier run's message arriving late: ignored
+  const hwr_lcm::detection_t* d = c->find_detection("hwr-0", 4);
+  ASSERT_NE(d, nullptr);
+  EXPECT_EQ(d->run_id, 200);
+  EXPECT_EQ(d->t_ns, 2000);
+  EXPECT_EQ(d->state, 0);
+  EXPECT_EQ(c->stats().detections_ignored, 1);
 }
 
 TEST(OperatorConsole, GivenUndecodableOrInvalidMessagesThenRejectedAndNothingStored) {

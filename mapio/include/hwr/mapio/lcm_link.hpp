@@ -33,6 +33,7 @@ inline constexpr const char* kChannelStatus = "HWR_STATUS";
 inline constexpr const char* kChannelDetection = "HWR_DETECTION";
 inline constexpr const char* kChannelOperatorCommand = "HWR_OPERATOR_CMD";
 inline constexpr const char* kChannelOperatorAck = "HWR_OPERATOR_ACK";
+inline constexpr const char* kChannelKeyframeImage = "HWR_KEYFRAME_IMAGE";
 inline constexpr const char* kChannelImu = "HWR_IMU";
 inline constexpr const char* kChannelMag = "HWR_MAG";
 inline constexpr const char* kChannelGnss = "HWR_GNSS";

@@ -22,6 +22,7 @@
 // closes with nothing left to send gets an empty completing chunk (num_points 0, no payload).
 
 #include <Eigen/Geometry>
+#include <opencv2/core/mat.hpp>
 #include <atomic>
 #include <cstdint>
 #include <memory>
@@ -64,7 +65,12 @@ struct MapStreamerConfig {
   size_t max_chunk_bytes = 60'000;  // one LCM datagram (no LCM fragmentation: a lost fragment loses all)
   int batch_slots = 16;             // batches waiting for the streamer thread (>= 2: see the slot rule)
   int max_batch_points = 65'536;    // points per submit() at most
-  bool spatial_order = true;  // sort each batch along a Z-order curve before cutting it (spatial_order.hpp)
+  bool spatial_order = true;
+  // Keyframe images for the operator (HWR_KEYFRAME_IMAGE): JPEG at this quality, downscaled to at
+  // most this width (a 640-wide JPEG at 80 is ~30-60 kB, one or two LCM datagrams).
+  int keyframe_image_max_width = 640;
+  int keyframe_jpeg_quality =
+      80;  // sort each batch along a Z-order curve before cutting it (spatial_order.hpp)
 };
 
 struct MapStreamerStats {
@@ -88,6 +94,7 @@ struct MapStreamerStats {
   int64_t commands_received = 0;  // decoded, for this robot, handed to take_operator_command()
   int64_t commands_refused = 0;   // undecodable or invalid (operator_wire.hpp)
   int64_t commands_other_robot = 0, commands_dropped = 0;  // addressed to another robot; inbox full
+  int64_t keyframe_images_published = 0, keyframe_images_dropped = 0;  // dropped: queue full or not encodable
 };
 
 class MapStreamer {
@@ -122,6 +129,10 @@ class MapStreamer {
   void post_detection(const hwr_lcm::detection_t& detection);
   void post_command_ack(const hwr_lcm::command_ack_t& ack);
   bool take_operator_command(hwr_lcm::operator_command_t* command);
+  // A keyframe's colour image (8-bit BGR) for the operator to draw on, copied here and JPEG-encoded
+  // by the streamer thread (keyframe_image_t on HWR_KEYFRAME_IMAGE). At most 4 wait; a full queue
+  // drops the oldest (counted). Operator-paced (a few per second at most): the copy allocates.
+  void post_keyframe_image(int64_t keyframe_t_ns, const cv::Mat& bgr);
   // Waits until everything submitted has been acknowledged (true) or timeout_s passed (false).
   bool flush(double timeout_s);
   MapStreamerStats stats() const;

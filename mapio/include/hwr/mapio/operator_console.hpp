@@ -12,9 +12,10 @@
 // to one above the largest id stored under OUT_DIR when the clock is behind it: unique for this ground
 // station across restarts, and across a wiped store as long as the clock does not step back.
 //
-// Detections: the latest detection_t per (robot_id, detection_id): a message with a larger t_ns
-// replaces the stored one, one with the same or a smaller t_ns is ignored (a repeat or a reordered
-// message).
+// Detections: the latest detection_t per (robot_id, detection_id): a message of a later run (larger
+// run_id), or of the same run with a larger t_ns, replaces the stored one; one of an earlier run, or
+// with the same or a smaller t_ns, is ignored (a repeat or a reordered message). A replayed or
+// simulated run's t_ns can repeat an earlier run's, so the run comes first.
 //
 // Layout under OUT_DIR (beside GroundStore's run folders; robot_id [A-Za-z0-9_-]{1,64}):
 //   OUT_DIR/.operator_console.lock                   flock(2): one console per folder
