@@ -3,6 +3,7 @@
 #pragma once
 
 #include <sys/wait.h>
+#include <unistd.h>
 
 #include <cstdio>
 #include <map>
@@ -27,6 +28,32 @@ inline CliRun run_cli(const std::string& program, const std::string& args) {
   const int status = ::pclose(p);
   r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
   return r;
+}
+
+// Starts `command` in the background through the shell, its stdout and stderr into `log`; its pid.
+inline pid_t start_cli(const std::string& command, const std::string& log) {
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    const std::string cmd = "exec " + command + " > '" + log + "' 2>&1";
+    ::execl("/bin/sh", "sh", "-c", cmd.c_str(), static_cast<char*>(nullptr));
+    ::_exit(127);
+  }
+  return pid;
+}
+
+// Waits for a started program; its exit code, -1 if it did not exit normally.
+inline int wait_cli(pid_t pid) {
+  int status = 0;
+  if (::waitpid(pid, &status, 0) != pid) return -1;
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+// Whether a started program has exited (*code: its exit code, -1 if not a normal exit); never blocks.
+inline bool cli_exited(pid_t pid, int* code) {
+  int status = 0;
+  if (::waitpid(pid, &status, WNOHANG) != pid) return false;
+  *code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return true;
 }
 
 // The `key=value` lines (no spaces) of a program's output.

@@ -38,22 +38,6 @@ const std::string kScript = HWR_SOURCE_DIR "/apps/hwr-ground/web/e2e/viewer_e2e.
 const std::string kUrl = "udpm://239.255.76.67:7667?ttl=0&recv_buf_size=8388608";
 constexpr const char* kRobotId = "viewer-e2e";
 
-pid_t start(const std::string& command, const std::string& log) {
-  const pid_t pid = ::fork();
-  if (pid == 0) {
-    const std::string cmd = "exec " + command + " > '" + log + "' 2>&1";
-    ::execl("/bin/sh", "sh", "-c", cmd.c_str(), static_cast<char*>(nullptr));
-    ::_exit(127);
-  }
-  return pid;
-}
-
-int wait_exit(pid_t pid) {
-  int status = 0;
-  if (::waitpid(pid, &status, 0) != pid) return -1;
-  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-}
-
 struct Process {
   pid_t pid = -1;
   ~Process() {
@@ -64,12 +48,12 @@ struct Process {
   }
   int stop() {
     ::kill(pid, SIGTERM);
-    const int code = wait_exit(pid);
+    const int code = hwr::testing::wait_cli(pid);
     pid = -1;
     return code;
   }
   int wait() {
-    const int code = wait_exit(pid);
+    const int code = hwr::testing::wait_cli(pid);
     pid = -1;
     return code;
   }
@@ -113,16 +97,17 @@ TEST(HwrGroundViewerBrowser, GivenRobotAndGroundWhenThePageRejectsADetectionThen
   std::filesystem::create_directories(dir);
 
   Process ground, robot;
-  ground.pid = start(kGround + " --out " + dir + "/ground --link '" + kUrl +
-                         "' --status-interval 0 --http 127.0.0.1:0 --web-root " + kWebRoot,
-                     dir + "/ground.txt");
+  ground.pid = hwr::testing::start_cli(kGround + " --out " + dir + "/ground --link '" + kUrl +
+                                           "' --status-interval 0 --http 127.0.0.1:0 --web-root " + kWebRoot,
+                                       dir + "/ground.txt");
   const int port = wait_for_port(dir + "/ground.txt");
   ASSERT_GT(port, 0) << read_text(dir + "/ground.txt");
   // Long enough for the page to load, draw and reject while the robot still runs (it applies
   // commands only while it runs); the lab's first seams are detected within the first ~10 s.
-  robot.pid = start(kRobot + " --source sim:lab --duration 40 --quiet --regions geometry --link '" + kUrl +
-                        "' --robot-id " + kRobotId + " --link-wait 20 --map-out " + dir + "/map",
-                    dir + "/robot.txt");
+  robot.pid = hwr::testing::start_cli(
+      kRobot + " --source sim:lab --duration 40 --quiet --regions geometry --link '" + kUrl +
+          "' --robot-id " + kRobotId + " --link-wait 20 --map-out " + dir + "/map",
+      dir + "/robot.txt");
   const std::string shot = dir + "/viewer.png";
   const auto e2e = hwr::testing::run_cli("node", kScript + " --url http://127.0.0.1:" + std::to_string(port) +
                                                      "/ --screenshot " + shot + " --timeout-s 240");

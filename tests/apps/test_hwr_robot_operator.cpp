@@ -42,30 +42,8 @@ int64_t now_ns() {
       .count();
 }
 
-// Starts `command` in the background through the shell; its output goes to `log`. Returns its pid.
-pid_t start(const std::string& command, const std::string& log) {
-  const pid_t pid = ::fork();
-  if (pid == 0) {
-    const std::string cmd = "exec " + command + " > '" + log + "' 2>&1";
-    ::execl("/bin/sh", "sh", "-c", cmd.c_str(), static_cast<char*>(nullptr));
-    ::_exit(127);
-  }
-  return pid;
-}
-
-// Waits for a started process; -1 if it did not exit normally.
-int wait_exit(pid_t pid) {
-  int status = 0;
-  if (::waitpid(pid, &status, 0) != pid) return -1;
-  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-}
-
-bool exited(pid_t pid, int* code) {
-  int status = 0;
-  if (::waitpid(pid, &status, WNOHANG) != pid) return false;
-  *code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return true;
-}
+using hwr::testing::start_cli;
+using hwr::testing::wait_cli;
 
 std::string read_text(const std::string& path) {
   std::ifstream f(path);
@@ -126,15 +104,16 @@ TEST(HwrRobotOperator,
   std::filesystem::create_directories(dir);
   const std::string console_dir = dir + "/console", map1 = dir + "/map1", map2 = dir + "/map2";
   // hwr-ground acknowledges the map chunks (so the robot's end-of-run flush completes).
-  const pid_t ground = start(kGround + " --out " + dir + "/ground --link '" + kUrl + "' --status-interval 0",
-                             dir + "/ground.txt");
+  const pid_t ground = start_cli(
+      kGround + " --out " + dir + "/ground --link '" + kUrl + "' --status-interval 0", dir + "/ground.txt");
 
   // 1. The robot passes fillet_s1 at ~14 s of the walk and runs on to 32 s. Not paced at sensor rate:
   // every frame is processed however loaded the host (a paced robot drops frames there), and the
   // commands still reach it live (the run lasts ~20 s of wall time after the first detection).
-  const pid_t robot = start(kRobot + " --source sim:lab --duration 32 --quiet --regions geometry --link '" +
-                                kUrl + "' --robot-id " + kRobotId + " --link-wait 20 --map-out " + map1,
-                            dir + "/robot1.txt");
+  const pid_t robot =
+      start_cli(kRobot + " --source sim:lab --duration 32 --quiet --regions geometry --link '" + kUrl +
+                    "' --robot-id " + kRobotId + " --link-wait 20 --map-out " + map1,
+                dir + "/robot1.txt");
   int64_t rejected_id = -1, added_id = -1, reject_cmd = -1, add_cmd = -1, run1 = -1;
   {
     Ground g = Ground::open(console_dir);
@@ -148,8 +127,9 @@ TEST(HwrRobotOperator,
     int code = 0;
     for (int i = 0; i < 900 && !with_seam(); ++i) {
       g.pump(100);
-      ASSERT_FALSE(exited(robot, &code)) << "the robot ended before any detection with a seam:\n"
-                                         << read_text(dir + "/robot1.txt");
+      ASSERT_FALSE(hwr::testing::cli_exited(robot, &code))
+          << "the robot ended before any detection with a seam:\n"
+          << read_text(dir + "/robot1.txt");
     }
     ASSERT_TRUE(with_seam()) << read_text(dir + "/robot1.txt");
     const hwr_lcm::detection_t first = *with_seam();
@@ -213,7 +193,7 @@ TEST(HwrRobotOperator,
     EXPECT_EQ(find(after, added_id)->source, 2);  // operator
     EXPECT_NEAR(find(after, added_id)->box_center_world_m[0], first.box_center_world_m[0] + 1.0, 1e-9);
     // Keep the link serviced until the robot has finished its run.
-    while (!exited(robot, &code)) g.pump(200);
+    while (!hwr::testing::cli_exited(robot, &code)) g.pump(200);
     EXPECT_EQ(code, 0) << read_text(dir + "/robot1.txt");
   }  // the ground end stops
 
@@ -250,12 +230,12 @@ TEST(HwrRobotOperator,
     });
     const int64_t seen_before = g.console->stats().messages;
     // 12 s: it relocalizes against map1 after ~2 m, then places the list in this run's world.
-    const pid_t robot2 =
-        start(kRobot + " --source sim:lab --duration 12 --quiet --regions geometry --link '" + kUrl +
-                  "' --robot-id " + kRobotId + " --link-wait 20 --prior-map " + map1 + " --map-out " + map2,
-              dir + "/robot2.txt");
+    const pid_t robot2 = start_cli(
+        kRobot + " --source sim:lab --duration 12 --quiet --regions geometry --link '" + kUrl +
+            "' --robot-id " + kRobotId + " --link-wait 20 --prior-map " + map1 + " --map-out " + map2,
+        dir + "/robot2.txt");
     int code = 0;
-    while (!exited(robot2, &code)) g.pump(200);
+    while (!hwr::testing::cli_exited(robot2, &code)) g.pump(200);
     g.pump(500);
     EXPECT_EQ(code, 0) << read_text(dir + "/robot2.txt");
     // The restarted robot published its list: the same versions of the same entries (same t_ns: the
@@ -286,7 +266,7 @@ TEST(HwrRobotOperator,
   EXPECT_EQ(saved2->commands().size(), 2u);  // the journal goes on with the map
 
   ::kill(ground, SIGTERM);
-  wait_exit(ground);
+  wait_cli(ground);
   std::filesystem::remove_all(dir);
 }
 

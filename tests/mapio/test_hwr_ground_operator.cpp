@@ -24,6 +24,7 @@
 #include "hwr/mapio/lcm_link.hpp"
 #include "hwr/mapio/operator_console.hpp"
 #include "operator_fakes.hpp"
+#include "ground_process.hpp"
 #include "private_netns.hpp"
 #include "temp_dir.hpp"
 #include "cross_run.hpp"
@@ -34,7 +35,7 @@ namespace {
 namespace fs = std::filesystem;
 using hwr::testing::TempDir;
 
-const std::string kGround = HWR_BINARY_DIR "/apps/hwr-ground/hwr-ground";
+const std::string kGround = hwr::test::kGroundProgram;
 
 void write_text(const std::string& path, const std::string& text) {
   std::ofstream f(path);
@@ -115,30 +116,12 @@ const char* kUrl = "udpm://239.255.76.67:7667?ttl=0&recv_buf_size=8388608";
 
 // hwr-ground with stdout and stderr into `log`.
 pid_t start_ground(const std::string& out, const std::string& log, const std::vector<std::string>& extra) {
-  std::vector<std::string> args = {kGround, "--out", out, "--link", kUrl, "--status-interval", "0"};
+  std::vector<std::string> args = {"--out", out, "--link", kUrl, "--status-interval", "0"};
   args.insert(args.end(), extra.begin(), extra.end());
-  args = hwr::test::emulated_argv(args);  // qemu-aarch64 in front in the cross build's tests
-  std::vector<char*> argv;
-  for (auto& a : args) argv.push_back(a.data());
-  argv.push_back(nullptr);
-  pid_t pid = -1;
-  posix_spawn_file_actions_t fa;
-  posix_spawn_file_actions_init(&fa);
-  posix_spawn_file_actions_addopen(&fa, 1, log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-  posix_spawn_file_actions_adddup2(&fa, 1, 2);
-  const int rc = posix_spawn(&pid, args[0].c_str(), &fa, nullptr, argv.data(), environ);
-  posix_spawn_file_actions_destroy(&fa);
-  return rc == 0 ? pid : -1;
+  return hwr::test::start_ground_process(args, log);
 }
 
-// SIGTERM: hwr-ground's orderly stop; returns its exit status.
-int stop_ground(pid_t* pid) {
-  kill(*pid, SIGTERM);
-  int st = 0;
-  waitpid(*pid, &st, 0);
-  *pid = -1;
-  return WIFEXITED(st) ? WEXITSTATUS(st) : -1;
-}
+int stop_ground(pid_t* pid) { return hwr::test::stop_ground_process(pid); }
 
 struct GroundGuard {
   pid_t* pid;

@@ -5,14 +5,9 @@
 // API with cpp-httplib's client. A page's reject reaches the robot and its acknowledgement the page;
 // bad requests get 4xx with a reason; and after a restart of hwr-ground the API shows the same.
 
-#include <fcntl.h>
-#include <signal.h>
-#include <spawn.h>
-#include <sys/wait.h>
-#include <unistd.h>
-
 #include <chrono>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <regex>
 #include <string>
@@ -30,6 +25,7 @@
 #include "hwr/core/file_io.hpp"
 #include "hwr/mapio/lcm_link.hpp"
 #include "hwr/mapio/map_streamer.hpp"
+#include "ground_process.hpp"
 #include "private_netns.hpp"
 #include "temp_dir.hpp"
 
@@ -42,40 +38,22 @@ namespace {
 using hwr::testing::TempDir;
 using nlohmann::json;
 
-const std::string kGround = HWR_BINARY_DIR "/apps/hwr-ground/hwr-ground";
+const std::string kGround = hwr::test::kGroundProgram;
 const char* kUrl = "udpm://239.255.76.67:7667?ttl=0&recv_buf_size=8388608";
 constexpr int64_t kRunId = 1'732'477'000'000'000'000;
 constexpr int kPointsPerSegment = 1500;
 
 pid_t start_ground(const std::string& out, const std::string& web, const std::string& log) {
-  std::vector<std::string> args =
-      hwr::test::emulated_argv({kGround, "--out", out, "--link", kUrl, "--status-interval", "0", "--http",
-                                "127.0.0.1:0", "--web-root", web});
-  std::vector<char*> argv;
-  for (auto& a : args) argv.push_back(a.data());
-  argv.push_back(nullptr);
-  pid_t pid = -1;
-  posix_spawn_file_actions_t fa;
-  posix_spawn_file_actions_init(&fa);
-  posix_spawn_file_actions_addopen(&fa, 1, log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-  posix_spawn_file_actions_adddup2(&fa, 1, 2);
-  const int rc = posix_spawn(&pid, args[0].c_str(), &fa, nullptr, argv.data(), environ);
-  posix_spawn_file_actions_destroy(&fa);
-  return rc == 0 ? pid : -1;
+  return hwr::test::start_ground_process(
+      {"--out", out, "--link", kUrl, "--status-interval", "0", "--http", "127.0.0.1:0", "--web-root", web},
+      log);
 }
 
 struct Ground {
   pid_t pid = -1;
   int port = -1;
   ~Ground() { stop(); }
-  int stop() {
-    if (pid <= 0) return -1;
-    kill(pid, SIGTERM);
-    int st = 0;
-    waitpid(pid, &st, 0);
-    pid = -1;
-    return WIFEXITED(st) ? WEXITSTATUS(st) : -1;
-  }
+  int stop() { return pid > 0 ? hwr::test::stop_ground_process(&pid) : -1; }
 };
 
 // The port hwr-ground printed ("viewer at http://127.0.0.1:PORT/"), waiting up to 60 s (qemu).

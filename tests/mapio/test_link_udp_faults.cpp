@@ -30,6 +30,7 @@
 #include "hwr/mapio/map_streamer.hpp"
 #include "hwr_lcm/pose_t.hpp"
 #include "hwr_lcm/status_t.hpp"
+#include "ground_process.hpp"
 #include "private_netns.hpp"
 #include "cross_run.hpp"
 
@@ -40,22 +41,10 @@ namespace {
 
 namespace fs = std::filesystem;
 const char* kUrl = "udpm://239.255.76.67:7667?ttl=0&recv_buf_size=8388608";
-const std::string kGround = HWR_BINARY_DIR "/apps/hwr-ground/hwr-ground";
 
 pid_t start_ground(const std::string& out) {
-  std::vector<std::string> args = {kGround, "--out", out, "--link", kUrl, "--status-interval", "0"};
-  args = hwr::test::emulated_argv(args);  // qemu-aarch64 in front in the cross build's tests
-  std::vector<char*> argv;
-  for (auto& a : args) argv.push_back(a.data());
-  argv.push_back(nullptr);
-  pid_t pid = -1;
-  posix_spawn_file_actions_t fa;
-  posix_spawn_file_actions_init(&fa);
-  posix_spawn_file_actions_addopen(&fa, 1, "/dev/null", O_WRONLY, 0);
-  posix_spawn_file_actions_addopen(&fa, 2, "/dev/null", O_WRONLY, 0);
-  const int rc = posix_spawn(&pid, args[0].c_str(), &fa, nullptr, argv.data(), environ);
-  posix_spawn_file_actions_destroy(&fa);
-  return rc == 0 ? pid : -1;
+  return hwr::test::start_ground_process({"--out", out, "--link", kUrl, "--status-interval", "0"},
+                                         "/dev/null");
 }
 
 int stop(pid_t pid, int sig) {
