@@ -7,14 +7,18 @@
 // the peer's ATE and time. Table I of the paper compares per-frame time; these are our rows.
 //
 //   hwr-bench frame [--sequences teddy,lab,outdoor] [--duration S] [--no-peer] [--config FILE]
+//                   [--traj-out DIR]
 //
 // --config takes hwr-robot's estimation settings (YAML, section estimation:), so a setting can be
-// benched before it becomes the default.
+// benched before it becomes the default. --traj-out writes, per sequence, the trajectories the ATEs
+// are taken on (TUM format): DIR/<sequence>_groundtruth.tum, _ours.tum and _rgbd_odometry.tum
+// (`hwr-bench paper` plots them).
 
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 #include <numeric>
 #include <sstream>
 #include <string>
@@ -47,6 +51,28 @@ double mean(const std::vector<double>& v) {
   return v.empty() ? 0 : std::accumulate(v.begin(), v.end(), 0.0) / static_cast<double>(v.size());
 }
 
+// Sample standard deviation (n - 1), as the paper's "mean ± sd" and hwr-bench reloc's.
+double stddev(const std::vector<double>& v) {
+  if (v.size() < 2) return 0;
+  const double m = mean(v);
+  double s = 0;
+  for (double x : v) s += (x - m) * (x - m);
+  return std::sqrt(s / static_cast<double>(v.size() - 1));
+}
+
+// DIR/<sequence>_<what>.tum (a scenario path's '/' and '.' written '_').
+void write_trajectory(const std::string& dir, const std::string& sequence, const char* what,
+                      const std::vector<core::StampedPose>& poses) {
+  if (dir.empty()) return;
+  std::string name = sequence;
+  for (char& c : name)
+    if (c == '/' || c == '.') c = '_';
+  const std::string path = dir + "/" + name + "_" + what + ".tum";
+  const core::Status st =
+      core::write_tum_trajectory(path, poses, "hwr-bench frame: " + sequence + " " + what);
+  if (!st.ok()) std::fprintf(stderr, "hwr-bench frame: --traj-out: %s\n", st.message().c_str());
+}
+
 double ate_rmse(const std::vector<core::StampedPose>& gt, const std::vector<core::StampedPose>& est,
                 size_t* pairs) {
   auto ate = estimation::compute_ate(gt, est, estimation::AteOptions{});
@@ -62,6 +88,7 @@ int run_frame(int argc, char** argv) {
   std::string sequences = "teddy,lab,outdoor";
   double duration_s = 0;
   bool peer = true;
+  std::string traj_dir;
   estimation::PoseEstimatorConfig config;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
@@ -73,6 +100,14 @@ int run_frame(int argc, char** argv) {
       duration_s = std::atof(a.c_str() + 11);
     } else if (a == "--duration" && i + 1 < argc) {
       duration_s = std::atof(argv[++i]);
+    } else if (a == "--traj-out" && i + 1 < argc) {
+      traj_dir = argv[++i];
+      std::error_code ec;
+      std::filesystem::create_directories(traj_dir, ec);
+      if (ec) {
+        std::fprintf(stderr, "hwr-bench frame: --traj-out %s: %s\n", traj_dir.c_str(), ec.message().c_str());
+        return 2;
+      }
     } else if (a == "--no-peer") {
       peer = false;
     } else if (a == "--config" && i + 1 < argc) {
@@ -183,6 +218,10 @@ int run_frame(int argc, char** argv) {
     keys.push_back(line);
     std::snprintf(line, sizeof(line), "frame_ms_p99_%s=%.3f", name.c_str(), percentile(ms, 0.99));
     keys.push_back(line);
+    std::snprintf(line, sizeof(line), "frame_ms_sd_%s=%.3f", name.c_str(), stddev(ms));
+    keys.push_back(line);
+    write_trajectory(traj_dir, name, "groundtruth", seq->groundtruth);
+    write_trajectory(traj_dir, name, "ours", run->trajectory);
     std::snprintf(line, sizeof(line), "ate_m_%s_before_full_ba=%.5f", name.c_str(),
                   ate_rmse(seq->groundtruth, run->trajectory_before_full_ba, &pairs));
     keys.push_back(line);
@@ -205,6 +244,9 @@ int run_frame(int argc, char** argv) {
     keys.push_back(line);
     std::snprintf(line, sizeof(line), "rgbd_odometry_ms_mean_%s=%.3f", name.c_str(), mean(p->frame_ms));
     keys.push_back(line);
+    std::snprintf(line, sizeof(line), "rgbd_odometry_ms_sd_%s=%.3f", name.c_str(), stddev(p->frame_ms));
+    keys.push_back(line);
+    write_trajectory(traj_dir, name, "rgbd_odometry", p->T_world_cam);
     std::snprintf(line, sizeof(line), "speedup_vs_rgbd_odometry_%s=%.2f", name.c_str(),
                   mean(ms) > 0 ? mean(p->frame_ms) / mean(ms) : 0.0);
     keys.push_back(line);
@@ -229,9 +271,10 @@ int run_frame(int argc, char** argv) {
 
 }  // namespace
 
-HWR_BENCH_COMMAND(frame, "frame",
-                  "pose-estimation pipeline per frame (time, ATE, allocations) beside OpenCV RgbdOdometry "
-                  "[--sequences teddy,lab,outdoor] [--duration S] [--no-peer] [--config FILE]",
-                  run_frame);
+HWR_BENCH_COMMAND(
+    frame, "frame",
+    "pose-estimation pipeline per frame (time, ATE, allocations) beside OpenCV RgbdOdometry "
+    "[--sequences teddy,lab,outdoor] [--duration S] [--no-peer] [--config FILE] [--traj-out DIR]",
+    run_frame);
 
 }  // namespace hwr::bench
