@@ -263,6 +263,10 @@ struct ViewerServer::Impl {
     const bool built = !config.web_root.empty() && std::filesystem::exists(config.web_root + "/index.html");
     if (built) {
       server.set_mount_point("/", config.web_root);
+      // Revalidated on each load, so a rebuilt page is never served from a browser's stale copy.
+      server.set_file_request_handler([](const httplib::Request&, httplib::Response& res) {
+        res.set_header("Cache-Control", "no-cache");
+      });
     } else {
       server.Get("/", [](const httplib::Request&, httplib::Response& res) {
         res.set_content(kHelpPage, "text/html");

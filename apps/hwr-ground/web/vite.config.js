@@ -1,7 +1,10 @@
 // Vite builds the page into one folder that hwr-ground serves (toolchain/build-web.sh sets outDir).
+// `npx vite` (a development server with reload on save) forwards the API to a running hwr-ground
+// or dev/mock_server.mjs at HWR_GROUND_URL (default http://127.0.0.1:8080).
 import { defineConfig } from 'vite';
 
 export default defineConfig({
   base: './',
   build: { chunkSizeWarningLimit: 1000 },
+  server: { proxy: { '/api': process.env.HWR_GROUND_URL || 'http://127.0.0.1:8080' } },
 });

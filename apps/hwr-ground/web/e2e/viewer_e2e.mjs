@@ -57,12 +57,20 @@ async function wait_drawn(page, args, deadline_ms) {
       Number(document.body.dataset.detectionsDrawn) >= detections,
     [args.min_segments, args.min_detections],
     { timeout: Math.max(1000, deadline_ms - Date.now()), polling: 250 },
-  );
+  ).catch((error) => {
+    if (error.name !== 'TimeoutError') throw error;
+    throw new Error(`the page did not draw ${args.min_segments} segments and ${args.min_detections} detections in time`);
+  });
 }
 
 async function main() {
   const args = parse_args(process.argv.slice(2));
   const deadline = Date.now() + 1000 * args.timeout_s;
+  // A browser that hangs (at launch, in a screenshot) must not hang the caller.
+  setTimeout(() => {
+    console.log(`e2e_error=no result after ${args.timeout_s + 60} s`);
+    process.exit(1);
+  }, 1000 * (args.timeout_s + 60)).unref();
   const profile = mkdtempSync(join(tmpdir(), 'hwr-viewer-e2e-'));
   const errors = [];
   const context = await chromium.launchPersistentContext(profile, {
@@ -83,15 +91,37 @@ async function main() {
     };
     if (!args.screenshot_only) {
       const row = page.locator('[data-detection-id][data-state="proposed"], [data-detection-id][data-state="confirmed"]').first();
-      const id = await row.getAttribute('data-detection-id', { timeout: Math.max(1000, deadline - Date.now()) });
-      await row.locator('button[data-action="reject"]').click();
-      await page.waitForFunction(() => document.body.dataset.lastCommandId, null, { timeout: 10000 });
-      const command_id = await page.evaluate(() => document.body.dataset.lastCommandId);
+      const left = () => Math.max(1000, deadline - Date.now());
+      const id = await row.getAttribute('data-detection-id', { timeout: left() });
+      // A click can be lost (e.g. the list changed between mouse down and up): then it is repeated.
+      let response = null;
+      for (let attempt = 0; attempt < 3 && response == null; ++attempt) {
+        const posted = page
+          .waitForResponse((r) => r.url().includes('/api/command') && r.request().method() === 'POST', { timeout: 10000 })
+          .catch(() => null);
+        await page.locator(`[data-detection-id="${id}"] button[data-action="reject"]`).click({ timeout: left() });
+        response = await posted;
+      }
+      if (response == null) throw new Error(`clicking Reject of detection ${id} sent no command`);
+      const answer = await response.json().catch(() => ({}));
+      if (!response.ok()) throw new Error(`POST /api/command answered ${response.status()}: ${answer.error ?? ''}`);
+      const command_id = String(answer.command_id);
       const acknowledged = `[data-command-id="${command_id}"][data-state="accepted"]`;
       const rejected = `[data-detection-id="${id}"][data-state="rejected"]`;
-      const left = () => Math.max(1000, deadline - Date.now());
-      await page.waitForSelector(acknowledged, { timeout: left() });
-      await page.waitForSelector(rejected, { timeout: left() });
+      // Until the robot acknowledged the command and republished the detection as rejected; a
+      // refusal ends the wait with the robot's reason.
+      const outcome = await page.waitForFunction(
+        ([command, detection]) => {
+          const c = document.querySelector(`[data-command-id="${command}"]`);
+          if (c?.dataset.state === 'refused') return `refused: ${c.textContent.trim()}`;
+          const d = document.querySelector(`[data-detection-id="${detection}"]`);
+          return c?.dataset.state === 'accepted' && d?.dataset.state === 'rejected' ? 'ok' : null;
+        },
+        [command_id, id],
+        { timeout: left(), polling: 250 },
+      );
+      const result_text = await outcome.jsonValue();
+      if (result_text !== 'ok') throw new Error(`command ${command_id} (reject ${id}) ${result_text}`);
       // A reload shows the same: the page holds nothing the ground station does not.
       await page.reload();
       await wait_drawn(page, args, deadline);
@@ -101,12 +131,18 @@ async function main() {
       result.e2e_command_id = command_id;
     }
     await page.waitForTimeout(500);  // one more poll and render after the last change
-    await page.screenshot({ path: args.screenshot });
+    await page.screenshot({ path: args.screenshot, fullPage: true });
     for (const [k, v] of Object.entries(result)) console.log(`${k}=${v}`);
     console.log('e2e_ok=1');
   } catch (error) {
     console.log(`e2e_error=${String(error.message).split('\n')[0]}`);
-    for (const e of errors) console.log(`page error: ${e}`);
+    const seen = await context.pages()[0]?.evaluate(() => ({
+      ...document.body.dataset,
+      connection: document.getElementById('connection')?.textContent,
+      view: document.getElementById('view-message')?.textContent,
+    })).catch(() => null);
+    if (seen) console.log(`e2e_page=${JSON.stringify(seen)}`);
+    for (const e of errors) console.log(`e2e_console_error=${e.split('\n')[0]}`);
     process.exitCode = 1;
   } finally {
     await context.close();

@@ -11,9 +11,14 @@ export class KeyframeCanvas {
     this.drag = null;      // canvas pixels
     this.drawn = null;     // keyframe pixels [x, y, w, h]
     this.on_drawn = on_drawn;
-    canvas.addEventListener('mousedown', (e) => this.start(e));
-    canvas.addEventListener('mousemove', (e) => this.move(e));
-    window.addEventListener('mouseup', () => this.end());
+    this.missing = false;  // the image could not be loaded
+    canvas.addEventListener('pointerdown', (e) => {
+      canvas.setPointerCapture(e.pointerId);
+      this.start(e);
+    });
+    canvas.addEventListener('pointermove', (e) => this.move(e));
+    canvas.addEventListener('pointerup', () => this.end());
+    canvas.addEventListener('pointercancel', () => this.end());
   }
 
   // Canvas pixels of a mouse event (the canvas is scaled by CSS).
@@ -42,6 +47,8 @@ export class KeyframeCanvas {
     }
     this.canvas.width = 640;
     this.canvas.height = Math.round((640 * keyframe.height) / keyframe.width);
+    this.image = null;
+    this.missing = false;
     const image = new Image();
     image.onload = () => {
       if (this.keyframe === keyframe) {
@@ -49,7 +56,21 @@ export class KeyframeCanvas {
         this.draw();
       }
     };
+    image.onerror = () => {
+      if (this.keyframe === keyframe) {
+        this.missing = true;
+        this.draw();
+      }
+    };
     image.src = url;
+    this.draw();
+  }
+
+  // Forgets the dragged rectangle (it was sent).
+  clear() {
+    this.drawn = null;
+    this.on_drawn(null);
+    this.draw();
   }
 
   draw() {
@@ -57,6 +78,12 @@ export class KeyframeCanvas {
     ctx.fillStyle = '#000';
     ctx.fillRect(0, 0, canvas.width, canvas.height);
     if (this.image) ctx.drawImage(this.image, 0, 0, canvas.width, canvas.height);
+    const note = !this.keyframe ? 'no keyframe images yet' : this.missing ? 'this keyframe has no image' : null;
+    if (note) {
+      ctx.fillStyle = '#888';
+      ctx.font = '16px system-ui, sans-serif';
+      ctx.fillText(note, 12, 28);
+    }
     const s = this.scale();
     ctx.lineWidth = 2;
     for (const b of this.boxes) {

@@ -40,13 +40,16 @@ const keyframes = new KeyframeCanvas($('keyframe-canvas'), (box) => {
   $('drawn-box').textContent = box ? `x ${box[0]} y ${box[1]} w ${box[2]} h ${box[3]} px` : 'drag a rectangle on the image';
 });
 
+// Resolves to whether hwr-ground took the command (the commands panel then shows its state).
 async function send(command) {
   $('command-error').textContent = '';
   try {
     const id = await post_command({ robot: robot_id, ...command });
     document.body.dataset.lastCommandId = id;
+    return true;
   } catch (error) {
-    $('command-error').textContent = error.message;
+    $('command-error').textContent = `${command.kind}: ${error.message}`;
+    return false;
   }
 }
 
@@ -54,7 +57,7 @@ function on_detection_action(action, d) {
   if (action === 'edit') {
     const form = $('edit-form');
     form.hidden = false;
-    form.dataset.detectionId = d.detection_id;
+    form.dataset.editId = d.detection_id;  // not data-detection-id: that names the list's rows
     form.dataset.q = JSON.stringify(d.q_world_box);
     $('edit-id').textContent = d.detection_id;
     ['cx', 'cy', 'cz'].forEach((n, i) => (form.elements[n].value = d.center_world_m[i].toFixed(3)));
@@ -70,7 +73,7 @@ $('edit-form').addEventListener('submit', (event) => {
   const numbers = (names) => names.map((n) => Number(form.elements[n].value));
   send({
     kind: 'move',
-    detection_id: form.dataset.detectionId,
+    detection_id: form.dataset.editId,
     center_world_m: numbers(['cx', 'cy', 'cz']),
     size_m: numbers(['sx', 'sy', 'sz']),
     q_world_box: JSON.parse(form.dataset.q),
@@ -81,7 +84,7 @@ $('edit-form').querySelector('[data-action="cancel-move"]').addEventListener('cl
 
 $('add-region').addEventListener('click', () => {
   if (!keyframes.drawn || !keyframes.keyframe) return;
-  send({ kind: 'add', keyframe_t_ns: keyframes.keyframe.t_ns, box_px: keyframes.drawn });
+  send({ kind: 'add', keyframe_t_ns: keyframes.keyframe.t_ns, box_px: keyframes.drawn }).then((sent) => sent && keyframes.clear());
 });
 
 $('robot').addEventListener('change', (event) => {
@@ -90,7 +93,15 @@ $('robot').addEventListener('change', (event) => {
   trajectory_poses = -1;
 });
 
-$('keyframe').addEventListener('change', () => show_keyframe());
+// The newest keyframe is shown until the operator picks another one or starts drawing on it.
+let keyframe_chosen = false;
+$('keyframe').addEventListener('change', () => {
+  keyframe_chosen = $('keyframe').selectedIndex > 0;
+  show_keyframe();
+});
+$('keyframe-canvas').addEventListener('pointerdown', () => (keyframe_chosen = true));
+$('frame-all').addEventListener('click', () => scene?.frame_all());
+$('frame-all').disabled = scene == null;
 
 function show_keyframe() {
   if (!last_robot) return;
@@ -110,54 +121,92 @@ function update_robot_select(robots) {
   select.value = robot_id ?? '';
 }
 
-function update_keyframe_select(list) {
+// Options newest first, named by their age relative to the newest and the regions drawn on them.
+function update_keyframe_select(list, detections) {
   const select = $('keyframe');
   const newest_first = [...list].reverse();
   const values = newest_first.map((k) => k.t_ns);
-  if ([...select.options].map((o) => o.value).join() === values.join()) return;
+  const label = (k) => {
+    const regions = detections.filter((d) => d.keyframe_t_ns === k.t_ns).length;
+    let age_s = NaN;
+    try {
+      age_s = Number(BigInt(newest_first[0].t_ns) - BigInt(k.t_ns)) * 1e-9;
+    } catch {
+      // not an integer: named by its time stamp
+    }
+    const name = age_s === 0 ? 'newest keyframe' : Number.isFinite(age_s) ? `${age_s.toFixed(1)} s earlier` : `keyframe ${k.t_ns}`;
+    return name + (regions ? ` · ${regions} region(s)` : '');
+  };
+  const labels = newest_first.map(label);
+  if ([...select.options].map((o) => o.value + o.text).join() === values.map((v, i) => v + labels[i]).join()) return;
   const keep = select.value;
-  select.replaceChildren(...newest_first.map((k) => new Option(`keyframe ${(Number(k.t_ns) * 1e-9).toFixed(2)} s`, k.t_ns)));
-  select.value = values.includes(keep) ? keep : values[0] ?? '';
+  select.replaceChildren(...newest_first.map((k, i) => new Option(labels[i], k.t_ns)));
+  select.value = keyframe_chosen && values.includes(keep) ? keep : values[0] ?? '';
 }
+
+const RETRY_MS = 5000;
+const failed = new Map();  // segment key -> when its last fetch failed
 
 async function load_segment(segment, full) {
   const key = key_of(segment);
-  if (loading.has(key)) return;
+  if (loading.has(key) || performance.now() - (failed.get(key) ?? -RETRY_MS) < RETRY_MS) return;
   loading.add(key);
   try {
-    const data = await fetch_segment(robot_id, segment, full ? 0 : THINNED_POINTS);
+    const data = await fetch_segment(segment.robot_id, segment, full ? 0 : THINNED_POINTS);
+    if (segment.robot_id !== robot_id) return;  // the operator picked another robot meanwhile
     scene.set_segment(key, segment.revision, data, full || data.count === data.total);
+    failed.delete(key);
+    // The newer version is drawn: the older ones of that segment go.
+    for (const k of [...scene.segments.keys()]) {
+      const [run, id, version] = k.split('/');
+      if (run === String(segment.run_id) && id === String(segment.segment_id) && Number(version) < segment.version)
+        scene.remove_segment(k);
+    }
+    show_segments_drawn();
   } catch (error) {
+    failed.set(key, performance.now());
     $('view-message').textContent = `segment ${key}: ${error.message}`;
   } finally {
     loading.delete(key);
   }
 }
 
-function update_segments(segments) {
+function show_segments_drawn() {
+  document.body.dataset.segmentsDrawn = String(scene ? scene.segments_drawn() : 0);
+}
+
+// Each segment's newest version is fetched thinned when it is new or its points changed (at full
+// resolution when the view is zoomed in on it), and again in full once the view zooms in on it. An
+// older version stays drawn until the newer one has arrived.
+function update_segments(robot) {
   if (!scene) return;
-  const wanted = new Map();
-  // Only the newest version of each segment is drawn.
-  for (const s of segments) {
-    const prev = wanted.get(s.segment_id);
-    if (!prev || s.version > prev.version) wanted.set(s.segment_id, s);
+  const newest = new Map();
+  for (const s of robot.segments) {
+    const prev = newest.get(s.segment_id);
+    if (!prev || s.version > prev.version) newest.set(s.segment_id, { ...s, robot_id: robot.robot_id });
   }
-  const keys = new Set([...wanted.values()].map(key_of));
-  for (const key of [...scene.segments.keys()]) if (!keys.has(key)) scene.remove_segment(key);
-  for (const s of wanted.values()) {
-    const drawn = scene.segments.get(key_of(s));
-    if (!drawn || drawn.revision !== s.revision) load_segment(s, drawn?.full ?? false);
+  // A segment no longer listed goes (a new run); an older version goes once its successor is drawn.
+  const listed = new Set(robot.segments.map((s) => `${s.run_id}/${s.segment_id}`));
+  for (const key of [...scene.segments.keys()]) {
+    if (!listed.has(key.split('/').slice(0, 2).join('/'))) scene.remove_segment(key);
+  }
+  for (const s of newest.values()) {
+    const key = key_of(s);
+    const drawn = scene.segments.get(key);
+    if (!drawn || drawn.revision !== s.revision) load_segment(s, drawn != null && scene.zoomed_in_on(key));
   }
   for (const key of scene.segments_to_refine()) {
-    const s = [...wanted.values()].find((x) => key_of(x) === key);
+    const s = [...newest.values()].find((x) => key_of(x) === key);
     if (s) load_segment(s, true);
   }
-  let drawn = 0;
-  for (const s of scene.segments.values()) if (s.points.geometry.attributes.position.count > 0) ++drawn;
-  document.body.dataset.segmentsDrawn = String(drawn);
+  show_segments_drawn();
 }
 
 async function update_trajectory(robot) {
+  if (robot.trajectory_poses === 0 && trajectory_poses !== 0) {
+    scene?.set_trajectory([]);  // a new run without poses yet
+    trajectory_poses = 0;
+  }
   const now = performance.now();
   if (robot.trajectory_poses === 0 || robot.trajectory_poses === trajectory_poses || now - last_trajectory_ms < TRAJECTORY_MS)
     return;
@@ -183,37 +232,52 @@ function show_pose(pose) {
     (pose.tracking ? '' : ', tracking lost') + (pose.localized ? ', in the prior map' : '');
 }
 
+function show_state(state) {
+  update_robot_select(state.robots);
+  const robot = state.robots.find((r) => r.robot_id === robot_id);
+  if (!robot) {
+    $('pose-text').textContent = 'no robot has sent anything yet';
+    return;
+  }
+  last_robot = robot;
+  update_segments(robot);
+  update_trajectory(robot);
+  show_pose(robot.pose);
+  // Only when they change; the rows are updated in place (panels.js), so a click is never lost.
+  if (changed('detections', robot.detections)) {
+    scene?.set_detections(robot.detections);
+    show_detections($('detections'), robot.detections, on_detection_action, (d) => scene?.frame_detection(d));
+    document.body.dataset.detectionsDrawn = String(robot.detections.length);
+  }
+  if (changed('commands', robot.commands)) show_commands($('commands'), robot.commands);
+  show_link($('link'), robot.link, robot.segments);
+  show_status($('tasks'), $('counters'), robot.status);
+  update_keyframe_select(robot.keyframes, robot.detections);
+  show_keyframe();
+}
+
+// Every POLL_MS, also after failures: a restarted hwr-ground is picked up again by itself.
 async function poll() {
+  let state = null;
   try {
-    const state = await fetch_state();
-    $('connection').textContent = 'ground station connected';
-    $('connection').className = 'good';
-    update_robot_select(state.robots);
-    const robot = state.robots.find((r) => r.robot_id === robot_id);
-    if (robot) {
-      last_robot = robot;
-      update_segments(robot.segments);
-      update_trajectory(robot);
-      show_pose(robot.pose);
-      // Redrawn only when they change: a row rebuilt under the operator's click would lose it.
-      if (changed('detections', robot.detections)) {
-        scene?.set_detections(robot.detections);
-        show_detections($('detections'), robot.detections, on_detection_action, (d) => scene?.frame_detection(d));
-        document.body.dataset.detectionsDrawn = String(robot.detections.length);
-      }
-      if (changed('commands', robot.commands)) show_commands($('commands'), robot.commands);
-      show_link($('link'), robot.link, robot.segments);
-      show_status($('tasks'), $('counters'), robot.status);
-      update_keyframe_select(robot.keyframes);
-      show_keyframe();
-    }
-    document.body.dataset.stateRevision = String(++revision);
+    state = await fetch_state();
   } catch (error) {
     $('connection').textContent = `ground station unreachable (${error.message}); retrying`;
     $('connection').className = 'bad';
-  } finally {
-    setTimeout(poll, POLL_MS);
   }
+  if (state) {
+    try {
+      show_state(state);
+      $('connection').textContent = 'ground station connected';
+      $('connection').className = 'good';
+      document.body.dataset.stateRevision = String(++revision);
+    } catch (error) {
+      console.error(error);
+      $('connection').textContent = `ground station connected; the page failed to show its state: ${error.message}`;
+      $('connection').className = 'bad';
+    }
+  }
+  setTimeout(poll, POLL_MS);
 }
 
 poll();

@@ -5,6 +5,10 @@ import { OrbitControls } from 'three/examples/jsm/controls/OrbitControls.js';
 
 const STATE_COLOURS = { proposed: 0xf0b429, confirmed: 0x3ddc84, rejected: 0xff4d4d };
 
+// Colours are drawn as given: the points' colours are the camera's sRGB bytes, and three.js would
+// otherwise treat vertex colours as linear and brighten them on output.
+THREE.ColorManagement.enabled = false;
+
 // 3x4 [R | t] row by row -> Matrix4.
 export function matrix_from_rows(T) {
   const m = new THREE.Matrix4();
@@ -17,6 +21,7 @@ export class MapScene {
   constructor(container) {
     this.container = container;
     this.renderer = new THREE.WebGLRenderer({ antialias: true, preserveDrawingBuffer: true });
+    this.renderer.outputColorSpace = THREE.LinearSRGBColorSpace;
     this.renderer.setPixelRatio(window.devicePixelRatio);
     container.appendChild(this.renderer.domElement);
     this.scene = new THREE.Scene();
@@ -37,7 +42,9 @@ export class MapScene {
     this.scene.add(this.pose);
     this.regions = new THREE.Group();
     this.scene.add(this.regions);
-    this.framed = false;
+    // The view frames the whole map as it grows until the operator moves it.
+    this.operator_moved = false;
+    this.controls.addEventListener('start', () => (this.operator_moved = true));
     new ResizeObserver(() => this.resize()).observe(container);
     this.resize();
   }
@@ -65,10 +72,7 @@ export class MapScene {
     const points = new THREE.Points(geometry, material);
     this.scene.add(points);
     this.segments.set(key, { points, revision, full, sphere: geometry.boundingSphere });
-    if (!this.framed && data.count > 0) {
-      this.frame_sphere(geometry.boundingSphere);
-      this.framed = true;
-    }
+    if (!this.operator_moved && data.count > 0) this.frame_all();
     this.render();
   }
 
@@ -81,15 +85,22 @@ export class MapScene {
     this.segments.delete(key);
   }
 
-  // Segments thinned for the browser that the view is now close to: fetch them in full.
+  // Segments thinned for the browser that the view is zoomed in on (the camera inside the segment's
+  // bounding sphere): fetch them in full.
   segments_to_refine() {
-    const out = [];
-    for (const [key, s] of this.segments) {
-      if (s.full) continue;
-      const d = this.camera.position.distanceTo(s.sphere.center);
-      if (d < Math.max(2.0, 0.6 * s.sphere.radius)) out.push(key);
-    }
-    return out;
+    return [...this.segments.keys()].filter((key) => !this.segments.get(key).full && this.zoomed_in_on(key));
+  }
+
+  zoomed_in_on(key) {
+    const s = this.segments.get(key);
+    return s != null && this.camera.position.distanceTo(s.sphere.center) < Math.max(2.0, s.sphere.radius);
+  }
+
+  // Segments with points in the view, counting each segment id once.
+  segments_drawn() {
+    const ids = new Set();
+    for (const [key, s] of this.segments) if (s.points.geometry.attributes.position.count > 0) ids.add(key.split('/')[1]);
+    return ids.size;
   }
 
   set_trajectory(xyz) {
@@ -145,7 +156,18 @@ export class MapScene {
     this.render();
   }
 
+  // Everything drawn: segments, trajectory, pose and regions.
+  frame_all() {
+    const box = new THREE.Box3();
+    for (const s of this.segments.values()) box.expandByObject(s.points);
+    if (this.trajectory) box.expandByObject(this.trajectory);
+    box.expandByObject(this.regions);
+    if (this.pose.visible) box.expandByPoint(new THREE.Vector3().setFromMatrixPosition(this.pose.matrix));
+    if (!box.isEmpty()) this.frame_sphere(box.getBoundingSphere(new THREE.Sphere()));
+  }
+
   frame_detection(d) {
+    this.operator_moved = true;
     const size = Math.max(...d.size_m, 0.2);
     this.frame_sphere(new THREE.Sphere(new THREE.Vector3().fromArray(d.center_world_m), 2 * size));
   }
