@@ -265,6 +265,9 @@ int main(int argc, char** argv) {
     const Guard lock(state_mutex);
     telemetry.on_keyframe_image_message(d, n);
   });
+  // Before the viewer prints its address: a supervisor that stops us once it sees it gets an orderly stop.
+  std::signal(SIGINT, on_signal);
+  std::signal(SIGTERM, on_signal);
   std::unique_ptr<hwr::ground::ViewerServer> viewer;
   if (!http.empty()) {
     auto started = hwr::ground::ViewerServer::start(viewer_config, g, console, telemetry, state_mutex);
@@ -287,8 +290,6 @@ int main(int argc, char** argv) {
                      ? ""
                      : (" (page not built under " + web_root + ": run toolchain/build-web.sh)").c_str());
   }
-  std::signal(SIGINT, on_signal);
-  std::signal(SIGTERM, on_signal);
   std::fprintf(stderr, "hwr-ground: listening on %s, storing under %s (%lld chunks already stored)\n",
                url.c_str(), out.c_str(), static_cast<long long>(g.store().chunks_stored()));
   if (console.pending_commands() > 0) {

@@ -2,7 +2,10 @@
 
 #include <arpa/inet.h>
 
+#include <atomic>
 #include <chrono>
+#include <cstdint>
+#include <limits>
 #include <cstring>
 #include <filesystem>
 #include <map>
@@ -12,6 +15,7 @@
 #include <httplib.h>
 
 #include "hwr/core/file_io.hpp"
+#include "hwr/core/time.hpp"
 #include "hwr/mapio/world_cloud.hpp"
 
 namespace hwr::ground {
@@ -21,16 +25,12 @@ using nlohmann::json;
 
 constexpr const char* kJson = "application/json";
 
-int64_t steady_ns() {
-  return std::chrono::duration_cast<std::chrono::nanoseconds>(
-             std::chrono::steady_clock::now().time_since_epoch())
-      .count();
-}
-
 void send_json(httplib::Response& res, int status, const json& body) {
   res.status = status;
   res.set_header("Cache-Control", "no-store");
-  res.set_content(body.dump(), kJson);
+  // Invalid UTF-8 (a robot's text cut mid-character) is replaced, never an exception: the state stays
+  // readable.
+  res.set_content(body.dump(-1, ' ', false, json::error_handler_t::replace), kJson);
 }
 
 void send_error(httplib::Response& res, int status, const std::string& why) {
@@ -51,17 +51,10 @@ int http_status(const core::Status& st) {
   }
 }
 
-// A decimal integer query parameter; false when absent or not an integer.
-bool int_param(const httplib::Request& req, const char* name, int64_t* out) {
-  if (!req.has_param(name)) return false;
-  const std::string v = req.get_param_value(name);
-  size_t used = 0;
-  try {
-    *out = std::stoll(v, &used);
-  } catch (...) {
-    return false;
-  }
-  return !v.empty() && used == v.size();
+// A decimal integer query parameter within [lo, hi]; false when absent, not an integer or outside.
+bool int_param(const httplib::Request& req, const char* name, int64_t lo, int64_t hi, int64_t* out) {
+  return req.has_param(name) && parse_decimal_int64(req.get_param_value(name), out) && *out >= lo &&
+         *out <= hi;
 }
 
 const char* kHelpPage =
@@ -108,8 +101,10 @@ struct ViewerServer::Impl {
   const mapio::GroundTelemetry& telemetry;
   std::mutex& state_mutex;
   LinkRateMeter rates;  // under state_mutex
+  core::MonotonicClock clock;
   httplib::Server server;
   std::thread thread;
+  std::atomic<bool> listening_done{false};  // listen_after_bind returned
   int port = 0;
 
   // Decoded segments: (robot, run, segment, version) -> the revision decoded and the cloud.
@@ -175,13 +170,15 @@ struct ViewerServer::Impl {
   }
 
   void get_segment(const httplib::Request& req, httplib::Response& res) {
+    constexpr int64_t kInt32Max = std::numeric_limits<int32_t>::max();
     int64_t run = 0, segment = 0, version = 0, max_points = 0;
-    if (!req.has_param("robot") || !int_param(req, "run", &run) || !int_param(req, "segment", &segment) ||
-        !int_param(req, "version", &version)) {
+    if (!req.has_param("robot") || !int_param(req, "run", 0, INT64_MAX, &run) ||
+        !int_param(req, "segment", 0, kInt32Max, &segment) ||
+        !int_param(req, "version", 0, kInt32Max, &version)) {
       return send_error(res, 400,
                         "segment: robot, run, segment and version are required (integers but robot)");
     }
-    if (req.has_param("max_points") && !int_param(req, "max_points", &max_points))
+    if (req.has_param("max_points") && !int_param(req, "max_points", 0, INT64_MAX, &max_points))
       return send_error(res, 400, "segment: max_points must be an integer");
     auto cloud = segment_cloud(
         {req.get_param_value("robot"), run, static_cast<int32_t>(segment), static_cast<int32_t>(version)});
@@ -205,7 +202,7 @@ struct ViewerServer::Impl {
 
   void get_keyframe(const httplib::Request& req, httplib::Response& res) {
     int64_t t_ns = 0;
-    if (!req.has_param("robot") || !int_param(req, "t_ns", &t_ns))
+    if (!req.has_param("robot") || !int_param(req, "t_ns", 0, INT64_MAX, &t_ns))
       return send_error(res, 400, "keyframe: robot and t_ns are required");
     std::string path;
     {
@@ -223,6 +220,10 @@ struct ViewerServer::Impl {
   }
 
   void post_command(const httplib::Request& req, httplib::Response& res) {
+    // Only a page of this server sends JSON here: a plain form or a no-cors fetch from another site
+    // cannot set this type without a CORS preflight, which this server never answers.
+    if (req.get_header_value("Content-Type").rfind("application/json", 0) != 0)
+      return send_error(res, 415, "command: the body must be sent as application/json");
     auto command = command_from_json(req.body);
     if (!command.ok()) return send_error(res, http_status(command.status()), command.status().message());
     core::Expected<int64_t> id = core::Internal("not sent");
@@ -234,13 +235,32 @@ struct ViewerServer::Impl {
     send_json(res, 200, {{"command_id", std::to_string(id.value())}});
   }
 
+  // Whether a request's Host names this server. A loopback server answers only to its loopback names,
+  // so that a page from elsewhere whose name was made to resolve to 127.0.0.1 (DNS rebinding) cannot
+  // read the state or send commands; a server bound to another address takes any name.
+  bool host_allowed(const httplib::Request& req) const {
+    if (!is_loopback_host(config.host)) return true;
+    const std::string host = req.get_header_value("Host");
+    const std::string p = ":" + std::to_string(port);
+    for (const std::string& name :
+         {std::string("127.0.0.1"), std::string("localhost"), std::string("[::1]"), config.host})
+      if (host == name + p) return true;
+    return false;
+  }
+
   void routes() {
     server.set_payload_max_length(64u << 10);  // a command is a few hundred bytes
+    server.set_pre_routing_handler([this](const httplib::Request& req, httplib::Response& res) {
+      if (host_allowed(req)) return httplib::Server::HandlerResponse::Unhandled;
+      send_error(res, 403,
+                 "Host '" + req.get_header_value("Host") + "' is not this server's loopback address");
+      return httplib::Server::HandlerResponse::Handled;
+    });
     server.Get("/api/state", [this](const httplib::Request&, httplib::Response& res) {
       json body;
       {
         std::lock_guard<std::mutex> lock(state_mutex);
-        body = state_json(sources(), &rates, steady_ns(), config.web_root);
+        body = state_json(sources(), &rates, clock.now_ns(), config.web_root);
       }
       send_json(res, 200, body);
     });
@@ -295,15 +315,19 @@ core::Expected<std::unique_ptr<ViewerServer>> ViewerServer::start(const ViewerSe
     impl->port = config.port;
   }
   Impl* raw = impl.get();
-  impl->thread = std::thread([raw] { raw->server.listen_after_bind(); });
-  // stop() before the loop runs would not end it: wait until it does.
-  for (int i = 0; i < 500 && !impl->server.is_running(); ++i)
-    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  impl->thread = std::thread([raw] {
+    raw->server.listen_after_bind();
+    raw->listening_done = true;
+  });
   return std::unique_ptr<ViewerServer>(new ViewerServer(std::move(impl)));
 }
 
 ViewerServer::~ViewerServer() {
-  impl_->server.stop();
+  // stop() does nothing before the listen loop runs, so it is repeated until the loop has returned.
+  while (!impl_->listening_done) {
+    impl_->server.stop();
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
   if (impl_->thread.joinable()) impl_->thread.join();
 }
 

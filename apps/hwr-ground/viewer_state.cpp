@@ -1,6 +1,9 @@
 #include "viewer_state.hpp"
 
 #include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <limits>
 #include <set>
 
 #include "hwr/mapio/operator_wire.hpp"
@@ -9,6 +12,8 @@ namespace hwr::ground {
 namespace {
 
 using nlohmann::json;
+
+constexpr size_t kMaxListedKeyframes = 200;
 
 std::string id_text(int64_t v) { return std::to_string(v); }
 
@@ -75,20 +80,12 @@ json command_json(const mapio::OperatorCommandRecord& r) {
 core::Status read_int64(const json& body, const char* field, int64_t* out) {
   auto it = body.find(field);
   if (it == body.end()) return core::InvalidArgument(std::string("command: '") + field + "' is missing");
-  if (it->is_number_integer()) {
+  if (it->is_number_integer() && !(it->is_number_unsigned() && it->get<uint64_t>() > INT64_MAX)) {
     *out = it->get<int64_t>();
     return core::Status::Ok();
   }
-  if (it->is_string()) {
-    const std::string& s = it->get_ref<const std::string&>();
-    size_t used = 0;
-    try {
-      *out = std::stoll(s, &used);
-    } catch (...) {
-      used = 0;
-    }
-    if (!s.empty() && used == s.size()) return core::Status::Ok();
-  }
+  if (it->is_string() && parse_decimal_int64(it->get_ref<const std::string&>(), out))
+    return core::Status::Ok();
   return core::InvalidArgument(std::string("command: '") + field +
                                "' must be an integer (or one as a string)");
 }
@@ -101,17 +98,37 @@ core::Status read_numbers(const json& body, const char* field, T (&out)[N]) {
                                  std::to_string(N) + " numbers");
   }
   for (size_t i = 0; i < N; ++i) {
-    if (!(*it)[i].is_number())
-      return core::InvalidArgument(std::string("command: '") + field + "' must hold numbers only");
-    out[i] = (*it)[i].get<T>();
+    // Within T's range: a double too large for a float would be undefined behaviour to convert.
+    const double v = (*it)[i].is_number() ? (*it)[i].get<double>() : std::nan("");
+    if (!std::isfinite(v) || std::abs(v) > static_cast<double>(std::numeric_limits<T>::max()))
+      return core::InvalidArgument(std::string("command: '") + field + "' must hold finite numbers only");
+    out[i] = static_cast<T>(v);
   }
   return core::Status::Ok();
 }
 
 }  // namespace
 
-double LinkRateMeter::update(const std::string& robot_id, int64_t bytes_stored, int64_t now_ns) {
-  auto& s = samples_[robot_id];
+bool parse_decimal_int64(const std::string& text, int64_t* out) {
+  // Digits with an optional leading '-': no spaces, no '+', nothing after, no overflow.
+  const bool negative = !text.empty() && text[0] == '-';
+  if (text.size() == (negative ? 1u : 0u) || text.size() > 20) return false;
+  uint64_t magnitude = 0;
+  for (size_t i = negative ? 1 : 0; i < text.size(); ++i) {
+    if (text[i] < '0' || text[i] > '9') return false;
+    const auto digit = static_cast<uint64_t>(text[i] - '0');
+    if (magnitude > (UINT64_MAX - digit) / 10) return false;
+    magnitude = magnitude * 10 + digit;
+  }
+  const uint64_t limit = negative ? static_cast<uint64_t>(INT64_MAX) + 1 : static_cast<uint64_t>(INT64_MAX);
+  if (magnitude > limit) return false;
+  *out = negative ? static_cast<int64_t>(0 - magnitude) : static_cast<int64_t>(magnitude);
+  return true;
+}
+
+double LinkRateMeter::update(const std::string& stream, int64_t bytes_stored, int64_t now_ns) {
+  auto& s = samples_[stream];
+  if (!s.empty() && bytes_stored < s.back().second) s.clear();  // the store was emptied: start again
   if (s.empty() || s.back().first < now_ns) s.emplace_back(now_ns, bytes_stored);
   while (s.size() > 2 && now_ns - s[1].first >= window_ns_) s.pop_front();
   if (s.size() < 2 || s.back().first == s.front().first) return 0.0;
@@ -144,9 +161,18 @@ json state_json(const ViewerSources& s, LinkRateMeter* rates, int64_t now_ns, co
         for (int i = 0; i < t->status->num_counters; ++i)
           if (t->status->counter_name[i] == "link.resends") robot_resends = t->status->counter_value[i];
       }
-      for (const mapio::KeyframeImageInfo& kf : t->keyframes)
+      // The newest kMaxListedKeyframes, and every one a detection of this run was seen on.
+      std::set<int64_t> referenced;
+      for (const hwr_lcm::detection_t& d : s.console.detections(robot_id))
+        if (d.run_id == run_id) referenced.insert(d.keyframe_t_ns);
+      const size_t first_newest =
+          t->keyframes.size() > kMaxListedKeyframes ? t->keyframes.size() - kMaxListedKeyframes : 0;
+      for (size_t i = 0; i < t->keyframes.size(); ++i) {
+        const mapio::KeyframeImageInfo& kf = t->keyframes[i];
+        if (i < first_newest && referenced.count(kf.keyframe_t_ns) == 0) continue;
         r["keyframes"].push_back(
             {{"t_ns", id_text(kf.keyframe_t_ns)}, {"width", kf.width}, {"height", kf.height}});
+      }
     }
     // The latest run's segments and what the link brought of them.
     json segments = json::array();
@@ -170,10 +196,14 @@ json state_json(const ViewerSources& s, LinkRateMeter* rates, int64_t now_ns, co
     }
     r["segments"] = segments;
     const double age_s = gs.last_chunk_ns > 0 ? static_cast<double>(now_ns - gs.last_chunk_ns) * 1e-9 : -1.0;
-    r["link"] = {{"chunks_stored", chunks},     {"bytes_stored", bytes},
-                 {"points_stored", points},     {"rate_bytes_s", rates->update(robot_id, bytes, now_ns)},
-                 {"duplicates", gs.duplicates}, {"rejected", gs.rejected},
-                 {"missing_chunks", missing},   {"robot_resends", robot_resends},
+    r["link"] = {{"chunks_stored", chunks},
+                 {"bytes_stored", bytes},
+                 {"points_stored", points},
+                 {"rate_bytes_s", rates->update(robot_id + "/" + std::to_string(run_id), bytes, now_ns)},
+                 {"duplicates", gs.duplicates},
+                 {"rejected", gs.rejected},
+                 {"missing_chunks", missing},
+                 {"robot_resends", robot_resends},
                  {"last_chunk_age_s", age_s}};
     json detections = json::array();
     // The latest run's list: an earlier run's detection ids name other regions.
@@ -186,9 +216,14 @@ json state_json(const ViewerSources& s, LinkRateMeter* rates, int64_t now_ns, co
     r["commands"] = commands;
     robots.push_back(std::move(r));
   }
-  return {{"server",
-           {{"t_ns", id_text(now_ns)}, {"out_dir", s.station.store().out_dir()}, {"web_root", web_root}}},
-          {"robots", robots}};
+  const mapio::GroundTelemetryStats& ts = s.telemetry.stats();
+  const json server = {{"t_ns", id_text(now_ns)},
+                       {"out_dir", s.station.store().out_dir()},
+                       {"web_root", web_root},
+                       {"telemetry_rejected", ts.rejected},
+                       {"telemetry_store_errors", ts.store_errors},
+                       {"operator_rejected", s.console.stats().rejected}};
+  return {{"server", server}, {"robots", robots}};
 }
 
 core::Expected<json> trajectory_json(const mapio::GroundTelemetry& telemetry, const std::string& robot_id,

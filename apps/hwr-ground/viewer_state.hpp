@@ -19,13 +19,17 @@
 
 namespace hwr::ground {
 
+// A decimal integer: digits with an optional leading '-', nothing else, within int64_t (query
+// parameters, 64-bit ids given as strings).
+bool parse_decimal_int64(const std::string& text, int64_t* out);
+
 // Payload bytes stored per robot over the last window_ns (steady clock): the link rate on the page.
 class LinkRateMeter {
  public:
   explicit LinkRateMeter(int64_t window_ns = 5'000'000'000) : window_ns_(window_ns) {}
-  // Records the robot's stored byte count at now_ns and returns bytes/s over the window (0 until two
-  // samples span some time).
-  double update(const std::string& robot_id, int64_t bytes_stored, int64_t now_ns);
+  // Records a stream's (a robot's run) stored byte count at now_ns and returns bytes/s over the window
+  // (0 until two samples span some time; a count that went down starts the stream again).
+  double update(const std::string& stream, int64_t bytes_stored, int64_t now_ns);
 
  private:
   int64_t window_ns_;

@@ -9,7 +9,6 @@
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
-#include <fstream>
 #include <sstream>
 
 #include "hwr/core/file_io.hpp"
@@ -140,21 +139,22 @@ core::Status GroundTelemetry::load() {
     });
     for (const KeyframeImageInfo& kf : images)
       if (kf.run_id == latest) r.view.keyframes.push_back(kf);
-    if (r.view.keyframes.size() > config_.max_keyframes)
-      r.view.keyframes.erase(r.view.keyframes.begin(),
-                             r.view.keyframes.end() - static_cast<std::ptrdiff_t>(config_.max_keyframes));
     if (latest < 0) continue;
-    std::ifstream in(dir + "/" + trajectory_name(latest));
-    std::string line;
+    // Lines end with '\n': a last line without one was cut by a crash (even if what is left parses).
+    std::string text;
+    (void)core::read_file(dir + "/" + trajectory_name(latest), &text);
     int64_t number = 0, damaged = 0;
-    while (std::getline(in, line)) {
+    size_t at = 0;
+    while (at < text.size()) {
+      const size_t end = text.find('\n', at);
       ++number;
       TrajectoryPose p;
-      if (!parse_pose_line(line, &p)) {
-        ++damaged;  // e.g. the last line of a ground station killed mid-write
-        continue;
+      if (end == std::string::npos || !parse_pose_line(text.substr(at, end - at), &p)) {
+        ++damaged;
+      } else {
+        add_pose(r, p);
       }
-      add_pose(r, p);
+      at = end == std::string::npos ? text.size() : end + 1;
     }
     if (damaged > 0) {
       notes_.push_back(dir + "/" + trajectory_name(latest) + ": " + std::to_string(damaged) + " of " +
@@ -184,9 +184,10 @@ void GroundTelemetry::switch_run(Robot& r, int64_t run_id) {
 void GroundTelemetry::add_pose(Robot& r, const TrajectoryPose& pose) {
   std::vector<TrajectoryPose>& t = r.view.trajectory;
   if (t.size() >= config_.max_trajectory_poses) {
-    // Keep every other pose (the newest included): the whole path stays drawn at half the density.
-    size_t kept = 0;
-    for (size_t i = t.size() % 2; i < t.size(); i += 2) t[kept++] = t[i];
+    // Keep the first pose and every other one back from the newest: the whole path stays drawn, at
+    // half the density.
+    size_t kept = 1;
+    for (size_t i = 2 - (t.size() - 1) % 2; i < t.size(); i += 2) t[kept++] = t[i];
     t.resize(kept);
   }
   t.push_back(pose);
@@ -221,7 +222,10 @@ void GroundTelemetry::on_pose_message(const uint8_t* data, size_t size) {
       if (r.trajectory_file == nullptr) {
         made = core::IoError("cannot open " + path + ": " + std::strerror(errno));
       } else if (std::fseek(r.trajectory_file, -1, SEEK_END) == 0 && std::fgetc(r.trajectory_file) != '\n') {
-        std::fputc('\n', r.trajectory_file);  // a line cut by a crash stays one damaged line
+        std::fseek(r.trajectory_file, 0, SEEK_END);  // C: a read and a write need a seek between them
+        // A line cut by a crash stays one damaged line (a trailing word no pose line has), even where
+        // what is left of it would parse.
+        std::fputs(" cut\n", r.trajectory_file);
       }
     }
     if (!made.ok()) {
@@ -298,7 +302,6 @@ void GroundTelemetry::on_keyframe_image_message(const uint8_t* data, size_t size
   } else {
     list.insert(at, kf);
   }
-  if (list.size() > config_.max_keyframes) list.erase(list.begin());
 }
 
 std::vector<std::string> GroundTelemetry::robots() const {

@@ -27,12 +27,13 @@
 #include <opencv2/imgproc.hpp>
 
 #include "cli_run.hpp"
+#include "mapio/ground_process.hpp"
 #include "mapio/private_netns.hpp"
 
 namespace {
 
 const std::string kRobot = HWR_BINARY_DIR "/apps/hwr-robot/hwr-robot";
-const std::string kGround = HWR_BINARY_DIR "/apps/hwr-ground/hwr-ground";
+const std::string kGround = hwr::test::kGroundProgram;
 const std::string kWebRoot = HWR_SOURCE_DIR "/build/web/dist";
 const std::string kScript = HWR_SOURCE_DIR "/apps/hwr-ground/web/e2e/viewer_e2e.mjs";
 const std::string kUrl = "udpm://239.255.76.67:7667?ttl=0&recv_buf_size=8388608";
@@ -66,17 +67,6 @@ std::string read_text(const std::string& path) {
   return ss.str();
 }
 
-int wait_for_port(const std::string& log) {
-  const std::regex re("viewer at http://127\\.0\\.0\\.1:([0-9]+)/");
-  for (int i = 0; i < 300; ++i) {
-    std::smatch m;
-    const std::string text = read_text(log);
-    if (std::regex_search(text, m, re)) return std::stoi(m[1]);
-    std::this_thread::sleep_for(std::chrono::milliseconds(100));
-  }
-  return -1;
-}
-
 TEST(HwrGroundViewerBrowser, GivenRobotAndGroundWhenThePageRejectsADetectionThenTheRobotsListChanges) {
   // What the test needs, said plainly when missing (toolchain/test.sh provides all three).
   ASSERT_TRUE(std::filesystem::exists(kWebRoot + "/index.html"))
@@ -100,12 +90,13 @@ TEST(HwrGroundViewerBrowser, GivenRobotAndGroundWhenThePageRejectsADetectionThen
   ground.pid = hwr::testing::start_cli(kGround + " --out " + dir + "/ground --link '" + kUrl +
                                            "' --status-interval 0 --http 127.0.0.1:0 --web-root " + kWebRoot,
                                        dir + "/ground.txt");
-  const int port = wait_for_port(dir + "/ground.txt");
+  const int port = hwr::test::wait_for_viewer_port(dir + "/ground.txt");
   ASSERT_GT(port, 0) << read_text(dir + "/ground.txt");
   // Long enough for the page to load, draw and reject while the robot still runs (it applies
-  // commands only while it runs); the lab's first seams are detected within the first ~10 s.
+  // commands only while it runs): the lab's first seams are detected within its first ~10 s, and this
+  // host renders and replays the walk at about real time, so ~50 s are left.
   robot.pid = hwr::testing::start_cli(
-      kRobot + " --source sim:lab --duration 40 --quiet --regions geometry --link '" + kUrl +
+      kRobot + " --source sim:lab --duration 60 --quiet --regions geometry --link '" + kUrl +
           "' --robot-id " + kRobotId + " --link-wait 20 --map-out " + dir + "/map",
       dir + "/robot.txt");
   const std::string shot = dir + "/viewer.png";

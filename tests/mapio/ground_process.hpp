@@ -9,8 +9,13 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <chrono>
+#include <regex>
 #include <string>
+#include <thread>
 #include <vector>
+
+#include "hwr/core/file_io.hpp"
 
 #include "cross_run.hpp"
 
@@ -43,6 +48,21 @@ inline int stop_ground_process(pid_t* pid) {
   waitpid(*pid, &st, 0);
   *pid = -1;
   return WIFEXITED(st) ? WEXITSTATUS(st) : -1;
+}
+
+// The port `hwr-ground --http 127.0.0.1:0` printed into its log ("viewer at http://127.0.0.1:PORT/"),
+// waiting up to timeout_s for it (qemu is slow to start); -1 when it never did.
+inline int wait_for_viewer_port(const std::string& log, double timeout_s = 60) {
+  const std::regex re("viewer at http://127\\.0\\.0\\.1:([0-9]+)/");
+  const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
+  while (std::chrono::steady_clock::now() < until) {
+    std::string text;
+    (void)core::read_file(log, &text);
+    std::smatch m;
+    if (std::regex_search(text, m, re)) return std::stoi(m[1]);
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  return -1;
 }
 
 }  // namespace hwr::test

@@ -56,18 +56,7 @@ struct Ground {
   int stop() { return pid > 0 ? hwr::test::stop_ground_process(&pid) : -1; }
 };
 
-// The port hwr-ground printed ("viewer at http://127.0.0.1:PORT/"), waiting up to 60 s (qemu).
-int wait_for_port(const std::string& log) {
-  const std::regex re("viewer at http://127\\.0\\.0\\.1:([0-9]+)/");
-  for (int i = 0; i < 600; ++i) {
-    std::string text;
-    (void)core::read_file(log, &text);
-    std::smatch m;
-    if (std::regex_search(text, m, re)) return std::stoi(m[1]);
-    std::this_thread::sleep_for(std::chrono::milliseconds(100));
-  }
-  return -1;
-}
+int wait_for_port(const std::string& log) { return hwr::test::wait_for_viewer_port(log); }
 
 json get_json(int port, const std::string& path, int* status = nullptr) {
   httplib::Client c("127.0.0.1", port);
@@ -259,8 +248,23 @@ TEST(HwrGroundViewer, GivenRobotTelemetryThenApiShowsItAcceptsARejectAndSurvives
   int status = 0;
   get_json(ground.port, "/api/segment?robot=viewer-0&run=x&segment=1&version=0", &status);
   EXPECT_EQ(status, 400);
-  get_json(ground.port, "/api/segment?robot=viewer-0&run=1&segment=9&version=0", &status);
+  get_json(ground.port, "/api/segment?robot=viewer-0&run=" + std::to_string(kRunId) + "&segment=9&version=0",
+           &status);
   EXPECT_EQ(status, 404);
+  get_json(ground.port, "/api/segment?robot=viewer-0&run=1&segment=4294967297&version=0", &status);
+  EXPECT_EQ(status, 400);  // not cut to segment 1
+  get_json(ground.port, "/api/segment?robot=viewer-0&run=+1&segment=1&version=0", &status);
+  EXPECT_EQ(status, 400);
+  // Another Host (a page whose name was made to resolve to 127.0.0.1) is refused; so is a command
+  // that is not sent as JSON (what a page elsewhere could send without a CORS preflight).
+  httplib::Headers rebound = {{"Host", "attacker.example:" + std::to_string(ground.port)}};
+  auto foreign = client.Get("/api/state", rebound);
+  ASSERT_TRUE(foreign);
+  EXPECT_EQ(foreign->status, 403);
+  auto plain =
+      client.Post("/api/command", R"({"robot":"viewer-0","kind":"reject","detection_id":"3"})", "text/plain");
+  ASSERT_TRUE(plain);
+  EXPECT_EQ(plain->status, 415);
   get_json(ground.port, "/api/keyframe?robot=viewer-0&t_ns=4", &status);
   EXPECT_EQ(status, 404);
   for (
@@ -306,12 +310,52 @@ TEST(HwrGroundViewer, GivenRobotTelemetryThenApiShowsItAcceptsARejectAndSurvives
   ASSERT_TRUE(acknowledged(r)) << r.dump(2);
   EXPECT_EQ(r["commands"].back()["command_id"], command_id);
 
+  // A region drawn on the keyframe image reaches the robot in the keyframe's pixels; the robot's
+  // refusal comes back with its reason.
+  auto added = client.Post("/api/command",
+                           R"({"robot":"viewer-0","kind":"add","keyframe_t_ns":"5000","box_px":[8,6,20,16]})",
+                           "application/json");
+  ASSERT_TRUE(added);
+  ASSERT_EQ(added->status, 200) << added->body;
+  const std::string add_id = json::parse(added->body)["command_id"];
+  received = false;
+  for (int i = 0; i < 300 && !received; ++i) {
+    received = robot.value()->take_operator_command(&command);
+    if (!received) std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  ASSERT_TRUE(received);
+  EXPECT_EQ(std::to_string(command.command_id), add_id);
+  EXPECT_EQ(command.kind, 3);
+  EXPECT_EQ(command.keyframe_t_ns, 5000);
+  EXPECT_EQ(command.box_px[0], 8.0f);
+  EXPECT_EQ(command.box_px[3], 16.0f);
+  EXPECT_EQ(command.box_size_m[0], 0.0);  // no world box: the robot lifts the rectangle with its depth
+  ack.command_id = command.command_id;
+  ack.accepted = 0;
+  ack.reason = "keyframe 5000 no longer kept \xe2\x80";  // cut mid-character: not UTF-8
+  ack.detection_id = -1;
+  robot.value()->post_command_ack(ack);
+  auto refused = [&](const json& x) {
+    for (const json& c : x["commands"])
+      if (c["command_id"] == add_id)
+        return c["state"] == "refused" &&
+               c["reason"].get<std::string>().rfind("keyframe 5000 no longer kept ", 0) == 0;
+    return false;
+  };
+  r = wait_state(ground.port, refused);
+  ASSERT_TRUE(refused(r)) << r.dump(2);
+
   // Damaged telemetry is counted and dropped.
   auto noise = LcmLink::open(kUrl);
   ASSERT_TRUE(noise.ok());
   const uint8_t junk[] = {0xde, 0xad, 0xbe, 0xef, 1, 2, 3};
   ASSERT_TRUE(noise->publish_bytes(kChannelPose, junk, sizeof junk).ok());
-  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  bool counted = false;
+  for (int i = 0; i < 300 && !counted; ++i) {
+    counted = get_json(ground.port, "/api/state")["server"]["telemetry_rejected"] == 1;
+    if (!counted) std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  EXPECT_TRUE(counted);
 
   // A restart of hwr-ground loses nothing the page shows.
   robot.value().reset();

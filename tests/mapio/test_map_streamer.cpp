@@ -253,7 +253,7 @@ TEST(MapStreamer, GivenTheCompletingBatchRefusedThenTheGroundStationStillSeesThe
   fs::remove_all(out);
 }
 
-TEST(MapStreamer, GivenKeyframeImagesThenLargeOnesDownscaledJpegsSentAndAFullQueueDropsTheOldest) {
+TEST(MapStreamer, GivenKeyframeImagesThenLargeOnesDownscaledAndNonBgrOnesIgnored) {
   if (!test::in_private_netns()) {
     HWR_RUN_IN_PRIVATE_NETNS();
     return;

@@ -6,5 +6,6 @@ import { defineConfig } from 'vite';
 export default defineConfig({
   base: './',
   build: { chunkSizeWarningLimit: 1000 },
-  server: { proxy: { '/api': process.env.HWR_GROUND_URL || 'http://127.0.0.1:8080' } },
+  // changeOrigin: hwr-ground answers only requests whose Host is its own loopback address.
+  server: { proxy: { '/api': { target: process.env.HWR_GROUND_URL || 'http://127.0.0.1:8080', changeOrigin: true } } },
 });

@@ -9,7 +9,9 @@
 //   kf_<run>_<t_ns>_<W>x<H>.jpg   keyframe images (W x H: the keyframe's size, box_px coordinates)
 // Messages are decoded and validated by telemetry_wire.hpp; a message that fails is counted and
 // dropped. A pose older than the newest kept one of its run is ignored (out of order). In memory a
-// trajectory keeps at most max_trajectory_poses poses: when full, every other one is dropped.
+// trajectory keeps at most max_trajectory_poses poses: when full, every other one is dropped (the
+// first and the newest kept). A line of trajectory_<run>.txt cut by a crash (no '\n' at its end) is
+// skipped when loading, and closed with a word no pose line has before the next pose is appended.
 // Not thread-safe (the caller serializes).
 
 #include <cstdint>
@@ -29,7 +31,6 @@ namespace hwr::mapio {
 struct GroundTelemetryConfig {
   std::string out_dir;
   size_t max_trajectory_poses = 20'000;
-  size_t max_keyframes = 200;  // images listed per robot (the files stay on disk)
   TelemetryWireLimits wire;
 };
 
@@ -50,7 +51,7 @@ struct RobotTelemetry {
   std::vector<TrajectoryPose> trajectory;  // of run_id, oldest first, thinned (see above)
   std::optional<hwr_lcm::status_t> status;
   int64_t status_received_ns = 0;            // the caller's clock
-  std::vector<KeyframeImageInfo> keyframes;  // of run_id, oldest first
+  std::vector<KeyframeImageInfo> keyframes;  // of run_id, oldest first (all of them: ~100 bytes each)
 };
 
 struct GroundTelemetryStats {

@@ -65,12 +65,11 @@ struct MapStreamerConfig {
   size_t max_chunk_bytes = 60'000;  // one LCM datagram (no LCM fragmentation: a lost fragment loses all)
   int batch_slots = 16;             // batches waiting for the streamer thread (>= 2: see the slot rule)
   int max_batch_points = 65'536;    // points per submit() at most
-  bool spatial_order = true;
+  bool spatial_order = true;  // sort each batch along a Z-order curve before cutting it (spatial_order.hpp)
   // Keyframe images for the operator (HWR_KEYFRAME_IMAGE): JPEG at this quality, downscaled to at
   // most this width (a 640-wide JPEG at 80 is ~30-60 kB, one or two LCM datagrams).
   int keyframe_image_max_width = 640;
-  int keyframe_jpeg_quality =
-      80;  // sort each batch along a Z-order curve before cutting it (spatial_order.hpp)
+  int keyframe_jpeg_quality = 80;
 };
 
 struct MapStreamerStats {
