@@ -24,6 +24,7 @@
 #include <string>
 #include <vector>
 
+#include "sample_stats.hpp"
 #include "bench_command.hpp"
 #include "bench_sequences.hpp"
 #include "hwr/core/alloc_counter.hpp"
@@ -49,15 +50,6 @@ double percentile(std::vector<double> v, double q) {
 
 double mean(const std::vector<double>& v) {
   return v.empty() ? 0 : std::accumulate(v.begin(), v.end(), 0.0) / static_cast<double>(v.size());
-}
-
-// Sample standard deviation (n - 1), as the paper's "mean ± sd" and hwr-bench reloc's.
-double stddev(const std::vector<double>& v) {
-  if (v.size() < 2) return 0;
-  const double m = mean(v);
-  double s = 0;
-  for (double x : v) s += (x - m) * (x - m);
-  return std::sqrt(s / static_cast<double>(v.size() - 1));
 }
 
 // DIR/<sequence>_<what>.tum (a scenario path's '/' and '.' written '_').
@@ -218,7 +210,7 @@ int run_frame(int argc, char** argv) {
     keys.push_back(line);
     std::snprintf(line, sizeof(line), "frame_ms_p99_%s=%.3f", name.c_str(), percentile(ms, 0.99));
     keys.push_back(line);
-    std::snprintf(line, sizeof(line), "frame_ms_sd_%s=%.3f", name.c_str(), stddev(ms));
+    std::snprintf(line, sizeof(line), "frame_ms_sd_%s=%.3f", name.c_str(), sample_sd(ms));
     keys.push_back(line);
     write_trajectory(traj_dir, name, "groundtruth", seq->groundtruth);
     write_trajectory(traj_dir, name, "ours", run->trajectory);
@@ -244,7 +236,7 @@ int run_frame(int argc, char** argv) {
     keys.push_back(line);
     std::snprintf(line, sizeof(line), "rgbd_odometry_ms_mean_%s=%.3f", name.c_str(), mean(p->frame_ms));
     keys.push_back(line);
-    std::snprintf(line, sizeof(line), "rgbd_odometry_ms_sd_%s=%.3f", name.c_str(), stddev(p->frame_ms));
+    std::snprintf(line, sizeof(line), "rgbd_odometry_ms_sd_%s=%.3f", name.c_str(), sample_sd(p->frame_ms));
     keys.push_back(line);
     write_trajectory(traj_dir, name, "rgbd_odometry", p->T_world_cam);
     std::snprintf(line, sizeof(line), "speedup_vs_rgbd_odometry_%s=%.2f", name.c_str(),

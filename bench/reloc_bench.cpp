@@ -33,6 +33,7 @@
 //    scene's last usable start are refused before its prior is opened. The false check (outdoor
 //    queries vs the lab prior) then uses the first --false-starts of them.
 
+#include "sample_stats.hpp"
 #include "bench_command.hpp"
 
 #if HWR_WITH_SIM
@@ -297,13 +298,6 @@ double median(std::vector<double> v) {
 double mean(const std::vector<double>& v) {
   return v.empty() ? std::nan("") : std::accumulate(v.begin(), v.end(), 0.0) / static_cast<double>(v.size());
 }
-double stddev(const std::vector<double>& v) {
-  if (v.size() < 2) return 0;
-  const double m = mean(v);
-  double s = 0;
-  for (double x : v) s += (x - m) * (x - m);
-  return std::sqrt(s / static_cast<double>(v.size() - 1));
-}
 
 // ---- the attempts of one start against one prior, for several sensor sets ----
 
@@ -514,7 +508,7 @@ std::vector<size_t> draw_starts(const RelocSimRun& run, int n, double need_m, st
 std::string fmt_time(const std::vector<double>& t) {
   if (t.empty()) return "-";
   char buf[96];
-  std::snprintf(buf, sizeof(buf), "%.3f / %.3f +- %.3f", median(t), mean(t), stddev(t));
+  std::snprintf(buf, sizeof(buf), "%.3f / %.3f +- %.3f", median(t), mean(t), sample_sd(t));
   return buf;
 }
 
@@ -997,7 +991,7 @@ int run_reloc(int argc, char** argv) {
     std::snprintf(buf, sizeof(buf), "%s_mean_s_successful=%.3f", prefix.c_str(), mean(times));
     keys.push_back(buf);
     std::snprintf(buf, sizeof(buf), "%s_sd_s_successful=%.3f", prefix.c_str(),
-                  times.empty() ? std::nan("") : stddev(times));
+                  times.empty() ? std::nan("") : sample_sd(times));
     keys.push_back(buf);
     std::snprintf(buf, sizeof(buf), "%s_false=%d", prefix.c_str(), n_false);
     keys.push_back(buf);
