@@ -17,6 +17,7 @@
 #include "hwr/core/log.hpp"
 #include "hwr/core/object_pool.hpp"
 #include "hwr/core/spsc_ring.hpp"
+#include "hwr/core/time.hpp"
 #include "hwr/mapio/chunk_wire.hpp"
 #include "hwr/mapio/ground_store.hpp"
 #include "hwr/mapio/lcm_link.hpp"
@@ -106,7 +107,6 @@ struct MapStreamer::Impl {
   static constexpr size_t kMaxImagesWaiting = 4;
   std::deque<std::pair<int64_t, cv::Mat>> images_out;  // keyframe_t_ns, BGR
   hwr_lcm::keyframe_image_t image_msg;                 // streamer thread
-  std::vector<uint8_t> jpeg;                           // streamer thread
   hwr_lcm::operator_command_t command_scratch;         // streamer thread
   std::thread thread;
   std::atomic<bool> stop{false};
@@ -327,11 +327,11 @@ struct MapStreamer::Impl {
       const double f = static_cast<double>(config.keyframe_image_max_width) / bgr.cols;
       cv::resize(bgr, scaled, cv::Size(), f, f, cv::INTER_AREA);
     }
-    if (!cv::imencode(".jpg", scaled, jpeg, {cv::IMWRITE_JPEG_QUALITY, config.keyframe_jpeg_quality}))
+    // Encoded straight into the message: no intermediate copy of the JPEG.
+    if (!cv::imencode(".jpg", scaled, image_msg.jpeg,
+                      {cv::IMWRITE_JPEG_QUALITY, config.keyframe_jpeg_quality}))
       return false;
-    image_msg.t_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(
-                         std::chrono::steady_clock::now().time_since_epoch())
-                         .count();
+    image_msg.t_ns = core::MonotonicClock().now_ns();
     image_msg.robot_id = robot_id_;
     image_msg.run_id = run_id_;
     image_msg.keyframe_t_ns = keyframe_t_ns;
@@ -339,8 +339,7 @@ struct MapStreamer::Impl {
     image_msg.height = bgr.rows;
     image_msg.jpeg_width = scaled.cols;
     image_msg.jpeg_height = scaled.rows;
-    image_msg.size = static_cast<int32_t>(jpeg.size());
-    image_msg.jpeg.assign(jpeg.begin(), jpeg.end());
+    image_msg.size = static_cast<int32_t>(image_msg.jpeg.size());
     return encode_keyframe_image(image_msg, &wire).ok() &&
            link.publish_bytes(kChannelKeyframeImage, wire.data(), wire.size()).ok();
   }

@@ -287,6 +287,9 @@ TEST(MapStreamer, GivenKeyframeImagesThenLargeOnesDownscaledAndNonBgrOnesIgnored
   EXPECT_NEAR(decoded.at<cv::Vec3b>(100, 120)[0], 250, 8);  // inside the white rectangle, scaled by 1/2
   EXPECT_NEAR(decoded.at<cv::Vec3b>(300, 500)[2], 90, 8);
   EXPECT_EQ(received[1].jpeg_width, 64);
+  // The streamer thread counts after it has published both: wait for its count.
+  for (int i = 0; i < 200 && (*streamer)->stats().keyframe_images_published < 2; ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
   EXPECT_EQ((*streamer)->stats().keyframe_images_published, 2);
   EXPECT_EQ((*streamer)->stats().keyframe_images_dropped, 0);
 }
