@@ -12,7 +12,7 @@ namespace {
 const std::string kTeddy = HWR_DATA_DIR "/tum-fr3-teddy-200/rgbd_dataset_freiburg3_teddy";
 }  // namespace
 
-core::Expected<Sequence> open_sequence(const std::string& name, double duration_s) {
+core::Expected<Sequence> open_sequence(const std::string& name, double duration_s, bool area_sampling) {
   Sequence s;
   s.name = name;
   if (name == "teddy") {
@@ -27,6 +27,7 @@ core::Expected<Sequence> open_sequence(const std::string& name, double duration_
 #if HWR_WITH_SIM
   auto spec = sim::load_scenario(name);
   if (!spec.ok()) return spec.status();
+  spec->render.area_sampling = spec->render.area_sampling || area_sampling;
   auto live = sim::open_sim_live_log(spec.value(), duration_s);
   if (!live.ok()) return live.status();
   s.log = std::move(live->log);
@@ -47,6 +48,7 @@ core::Expected<Sequence> open_sequence(const std::string& name, double duration_
   return s;
 #else
   (void)duration_s;
+  (void)area_sampling;
   return core::Unavailable("sequence " + name + ": this build has no simulator");
 #endif
 }

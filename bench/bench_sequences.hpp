@@ -26,7 +26,9 @@ struct Sequence {
 #endif
 };
 
-// duration_s > 0 cuts a sim sequence (hwr-sim --duration); ignored for teddy.
-core::Expected<Sequence> open_sequence(const std::string& name, double duration_s);
+// duration_s > 0 cuts a sim sequence (hwr-sim --duration); area_sampling renders a sim sequence's
+// colour integrated over each pixel (sim::RenderOptions::area_sampling). Both are ignored for teddy.
+core::Expected<Sequence> open_sequence(const std::string& name, double duration_s,
+                                       bool area_sampling = false);
 
 }  // namespace hwr::bench

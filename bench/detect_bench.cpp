@@ -2,6 +2,7 @@
 // and fused over the keyframes, against the seams of the simulator's ground truth.
 //
 //   hwr-bench detect [--sequences lab,outdoor] [--step N] [--duration S] [--max-range M]
+//                    [--area-sampling]
 //
 // Every --step-th frame is a keyframe here: its depth image (rendered with the simulator's stereo
 // noise) goes to GeometricSeamDetector at the frame's true pose (the detector's accuracy, not the
@@ -15,7 +16,9 @@
 // matched to the seams seen in at least one frame, a true end known when some frame saw it. The recall
 // of each kind (seam_recall_fillet=, seam_recall_butt=) is printed beside the recall over all seams.
 // For a reader, each fused seam that matches no true one and each true seam seen but not found (with
-// the keyframes that saw and matched it) is printed in the world frame.
+// the keyframes that saw and matched it) is printed in the world frame. --area-sampling renders the
+// colour integrated over each pixel (sim::RenderOptions::area_sampling: five rays a pixel) instead of
+// at its centre; the key lines then follow detect_area_sampling=1.
 
 #include "bench_command.hpp"
 
@@ -89,6 +92,7 @@ int run_detect(int argc, char** argv) {
   std::string sequences = "lab,outdoor";
   int step = 10;
   double duration_s = 0.0, max_range_m = 3.5;  // the detector's depth limit (OrganizedCloudConfig)
+  bool area_sampling = false;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     auto value = [&](const char* what) -> std::string {
@@ -110,10 +114,13 @@ int run_detect(int argc, char** argv) {
       duration_s = std::atof(value("--duration").c_str());
     } else if (a == "--max-range") {
       max_range_m = std::atof(value("--max-range").c_str());
+    } else if (a == "--area-sampling") {
+      area_sampling = true;
     } else {
       std::fprintf(
           stderr,
-          "usage: hwr-bench detect [--sequences lab,outdoor] [--step N] [--duration S] [--max-range M]\n");
+          "usage: hwr-bench detect [--sequences lab,outdoor] [--step N] [--duration S] [--max-range M] "
+          "[--area-sampling]\n");
       return a == "--help" || a == "-h" ? 0 : 2;
     }
   }
@@ -126,9 +133,10 @@ int run_detect(int argc, char** argv) {
   std::printf(
       "hwr-bench detect: the geometric seam detector per keyframe (every %d-th frame, true poses), seams in "
       "view "
-      "within %.1f m; match: %.0f deg, %.0f mm, %.0f %% overlap\n",
+      "within %.1f m; match: %.0f deg, %.0f mm, %.0f %% overlap; colour %s\n",
       step, max_range_m, detect::SeamMatchConfig{}.max_angle_rad * 57.29577951308232,
-      detect::SeamMatchConfig{}.max_lateral_m * 1e3, detect::SeamMatchConfig{}.min_overlap * 100);
+      detect::SeamMatchConfig{}.max_lateral_m * 1e3, detect::SeamMatchConfig{}.min_overlap * 100,
+      area_sampling ? "integrated over each pixel (5 rays)" : "at each pixel's centre");
   std::printf("%-10s %7s %9s %7s %9s %9s %9s %13s %13s %11s\n", "sequence", "frames", "w/ seams", "dets",
               "precision", "recall", "fillets", "endpoint mm", "lateral mm", "detect ms");
   Tally all;
@@ -178,7 +186,7 @@ int run_detect(int argc, char** argv) {
     keys.push_back(buf);
   };
   for (const std::string& name : names) {
-    auto seq = open_sequence(name, duration_s);
+    auto seq = open_sequence(name, duration_s, area_sampling);
     if (!seq.ok()) {
       std::fprintf(stderr, "hwr-bench detect: %s: %s\n", name.c_str(), seq.status().message().c_str());
       return 1;
@@ -335,6 +343,7 @@ int run_detect(int argc, char** argv) {
                                 t.fused_lateral_mm.end());
   }
   report("all", all);
+  std::printf("detect_area_sampling=%d\n", area_sampling ? 1 : 0);
   for (const std::string& k : keys) std::printf("%s\n", k.c_str());
   return 0;
 }

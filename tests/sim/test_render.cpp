@@ -413,5 +413,73 @@ TEST(RenderBuffers, DepthOnlyAndColourOnlyAgreeWithFullRender) {
   EXPECT_EQ(cv::norm(depth, depth_only, cv::NORM_INF), 0.0);
 }
 
+// GIVEN the ground's far edge (30 m) in front of a black background, seen by a level camera so
+//       that the edge lies 0.2 px below the centre of row 260 in the middle columns
+// WHEN rendering with the pixel centre only and with area sampling
+// THEN with the centre only row 260 is black (its centre misses the ground) and row 261 is ground;
+//      with area sampling one of row 260's five samples (+3/8 px) lands on the ground, so the row
+//      holds about a fifth of the ground's light, row 259 stays black, and depth is unchanged.
+TEST(RenderAreaSampling, GivenAnEdgeAFifthOfAPixelIntoARowThenTheRowHoldsAFifthOfTheLight) {
+  SceneSpec spec = ground_only();
+  spec.ground_extent_m = 30.0;
+  auto renderer = make(spec);
+  ASSERT_TRUE(renderer);
+  const hal::PinholeIntrinsics K = vga();  // fy 520, cy 241
+  // Row v sees the ground out to 30 m when (v - cy) / fy >= h / 30: the edge at v = 260.2.
+  const double h = (260.2 - K.cy) * 30.0 / K.fy;
+  const Eigen::Isometry3d T = look_at({0, 0, h}, {10, 0, h});
+  RenderOptions options;
+  options.background_bgr = {0, 0, 0};
+  options.max_range_m = 50.0;
+  cv::Mat centre_bgr, centre_depth, area_bgr, area_depth;
+  renderer->render(T, K, options, &centre_bgr, &centre_depth);
+  options.area_sampling = true;
+  renderer->render(T, K, options, &area_bgr, &area_depth);
+  EXPECT_EQ(cv::norm(centre_depth, area_depth, cv::NORM_INF), 0.0);
+  auto grey = [](const cv::Mat& bgr, int v, int u) {
+    const cv::Vec3b p = bgr.at<cv::Vec3b>(v, u);
+    return (p[0] + p[1] + p[2]) / 3.0;
+  };
+  double ratio_sum = 0.0;
+  int columns = 0;
+  for (int u = 300; u <= 340; ++u) {
+    ASSERT_EQ(grey(centre_bgr, 260, u), 0.0) << "column " << u;
+    ASSERT_GT(grey(centre_bgr, 261, u), 20.0) << "column " << u;
+    ASSERT_EQ(grey(area_bgr, 259, u), 0.0) << "column " << u;
+    ASSERT_GT(grey(area_bgr, 260, u), 0.0) << "column " << u;
+    ratio_sum += grey(area_bgr, 260, u) / grey(area_bgr, 261, u);
+    ++columns;
+  }
+  EXPECT_NEAR(ratio_sum / columns, 0.2, 0.1);
+}
+
+// Area sampling averages the same shading over the pixel: a textured view keeps its mean colour
+// and loses some of its pixel-to-pixel variation (the texture is low-pass filtered); a depth-only
+// render is the same as without it.
+TEST(RenderAreaSampling, GivenATexturedViewThenTheMeanIsKeptAndTheImageIsSmoother) {
+  auto renderer = make(cluttered());
+  ASSERT_TRUE(renderer);
+  const hal::PinholeIntrinsics K = vga();
+  const Eigen::Isometry3d T = look_at({-0.5, 0.3, 1.6}, {3, 0, 0.4});
+  RenderOptions options;
+  cv::Mat centre, area, depth_centre, depth_area;
+  renderer->render(T, K, options, &centre, &depth_centre);
+  options.area_sampling = true;
+  renderer->render(T, K, options, &area, nullptr);
+  renderer->render(T, K, options, nullptr, &depth_area);
+  EXPECT_EQ(cv::norm(depth_centre, depth_area, cv::NORM_INF), 0.0);
+  const cv::Scalar mean_centre = cv::mean(centre), mean_area = cv::mean(area);
+  for (int c = 0; c < 3; ++c) EXPECT_NEAR(mean_area[c], mean_centre[c], 2.0) << "channel " << c;
+  auto step_energy = [](const cv::Mat& bgr) {
+    double sum = 0.0;
+    for (int v = 0; v < bgr.rows; ++v)
+      for (int u = 1; u < bgr.cols; ++u)
+        sum += cv::norm(cv::Vec3d(bgr.at<cv::Vec3b>(v, u)) - cv::Vec3d(bgr.at<cv::Vec3b>(v, u - 1)),
+                        cv::NORM_L1);
+    return sum;
+  };
+  EXPECT_LT(step_energy(area), 0.9 * step_energy(centre));
+}
+
 }  // namespace
 }  // namespace hwr::sim

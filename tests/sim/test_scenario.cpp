@@ -217,6 +217,7 @@ TEST(Scenario, GivenBaseLabAndOverridesWhenParsedThenOnlyTheOverriddenFieldsChan
       "  stereo: {enabled: true}\n"
       "imu:\n"
       "  noise: {enabled: false}\n"
+      "render: {area_sampling: true}\n"
       "scene:\n"
       "  boxes:\n"
       "    - name: only_box\n"
@@ -237,6 +238,9 @@ TEST(Scenario, GivenBaseLabAndOverridesWhenParsedThenOnlyTheOverriddenFieldsChan
   EXPECT_EQ(s->camera.baseline_m, 0.12);
   EXPECT_FALSE(s->imu.noise.enabled);
   EXPECT_EQ(s->imu.noise.gyro_noise_density, lab.imu.noise.gyro_noise_density);
+  EXPECT_TRUE(s->render.area_sampling);
+  EXPECT_FALSE(lab.render.area_sampling);
+  EXPECT_EQ(s->render.ambient, lab.render.ambient);
   ASSERT_EQ(s->scene.boxes.size(), 1u);  // lists replace
   EXPECT_EQ(s->scene.boxes[0].material, Material::kWood);
   const Eigen::Vector3d x = s->scene.boxes[0].T_scene_box.linear().col(0);

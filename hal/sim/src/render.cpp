@@ -15,6 +15,7 @@
 #include <vector>
 
 #include <embree3/rtcore.h>
+#include <opencv2/core.hpp>
 
 #if defined(__SSE2__)
 #include <emmintrin.h>
@@ -234,6 +235,10 @@ class EmbreeRenderer final : public Renderer {
   template <bool kDepth>
   void render_single(const ShadeContext& c, const Eigen::Matrix3f& R, const hal::PinholeIntrinsics& K,
                      cv::Mat* bgr, cv::Mat* depth) const;
+
+  // Adds four rotated-grid samples to the centre samples in *bgr and averages them (area_sampling).
+  void integrate_colour(int width, const ShadeContext& c, const Eigen::Matrix3f& R,
+                        const hal::PinholeIntrinsics& K, cv::Mat* bgr) const;
 
   template <bool kDepth>
   void dispatch(int width, const ShadeContext& c, const Eigen::Matrix3f& R, const hal::PinholeIntrinsics& K,
@@ -521,6 +526,27 @@ void EmbreeRenderer::render(const Eigen::Isometry3d& T_scene_cam, const hal::Pin
   } else {
     dispatch<false>(width, c, R, intrinsics, colour, nullptr);
   }
+  if (options.area_sampling && bgr) integrate_colour(width, c, R, intrinsics, bgr);
+}
+
+void EmbreeRenderer::integrate_colour(int width, const ShadeContext& c, const Eigen::Matrix3f& R,
+                                      const hal::PinholeIntrinsics& K, cv::Mat* bgr) const {
+  // Rotated grid (RGSS): every sample on its own row and column, so edges near horizontal or
+  // vertical get five levels of coverage.
+  static constexpr float kOffsetPx[4][2] = {
+      {0.125f, -0.375f}, {0.375f, 0.125f}, {-0.125f, 0.375f}, {-0.375f, -0.125f}};
+  thread_local cv::Mat sample, sum;
+  bgr->convertTo(sum, CV_16UC3);
+  for (const auto& offset : kOffsetPx) {
+    // Pixel (u, v)'s ray is K^-1 [u v 1]: moving the principal point by -offset samples u + offset.
+    hal::PinholeIntrinsics K_sample = K;
+    K_sample.cx -= offset[0];
+    K_sample.cy -= offset[1];
+    sample.create(K.height, K.width, CV_8UC3);
+    dispatch<false>(width, c, R, K_sample, &sample, nullptr);
+    cv::add(sum, sample, sum, cv::noArray(), CV_16UC3);
+  }
+  sum.convertTo(*bgr, CV_8UC3, 1.0 / 5.0);  // rounded to nearest
 }
 
 double EmbreeRenderer::cast_ray(const Eigen::Vector3d& origin_scene, const Eigen::Vector3d& dir_scene) const {

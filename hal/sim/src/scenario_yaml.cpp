@@ -202,6 +202,7 @@ void read_exposure(ConfigMap m, ExposureSpec* e, std::vector<ExposureEvent>* eve
 void read_render(ConfigMap m, RenderOptions* r) {
   m.get("max_range_m", &r->max_range_m).get("min_range_m", &r->min_range_m);
   m.get("light_dir_scene", &r->light_dir_scene).get("ambient", &r->ambient);
+  m.get("area_sampling", &r->area_sampling);
 }
 
 void read_imu(ConfigMap m, ImuSpec* s) {
@@ -467,6 +468,7 @@ std::string scenario_to_yaml(const ScenarioSpec& s) {
   e.kv(2, "min_range_m", num(s.render.min_range_m));
   e.kv(2, "light_dir_scene", vec(s.render.light_dir_scene));
   e.kv(2, "ambient", num(s.render.ambient));
+  e.kv(2, "area_sampling", boolean(s.render.area_sampling));
 
   const ImuNoiseSpec& n = s.imu.noise;
   e.map(0, "imu");
