@@ -1,4 +1,6 @@
-// Runs a built program through the shell and captures what it prints, for the CLI tests.
+// Runs a built program through the shell and captures what it prints, for the CLI tests. A command
+// that starts with a program this build made (under HWR_BINARY_DIR) runs through the cross build's
+// emulator in the agx build's tests (cross_run.hpp); others (node, unshare) run as they are.
 
 #pragma once
 
@@ -10,7 +12,15 @@
 #include <sstream>
 #include <string>
 
+#include "cross_run.hpp"
+
 namespace hwr::testing {
+
+// `command` with the emulator in front when it starts with a program of this build.
+inline std::string with_emulator(const std::string& command) {
+  const std::string built = HWR_BINARY_DIR "/";
+  return command.rfind(built, 0) == 0 ? hwr::test::emulated_command(command) : command;
+}
 
 struct CliRun {
   int exit_code = -1;  // -1 when the program could not be started or did not exit normally
@@ -20,7 +30,7 @@ struct CliRun {
 // Runs `program args` with stderr folded into stdout.
 inline CliRun run_cli(const std::string& program, const std::string& args) {
   CliRun r;
-  FILE* p = ::popen((program + " " + args + " 2>&1").c_str(), "r");
+  FILE* p = ::popen((with_emulator(program) + " " + args + " 2>&1").c_str(), "r");
   if (p == nullptr) return r;
   char buf[4096];
   size_t n = 0;
@@ -34,7 +44,7 @@ inline CliRun run_cli(const std::string& program, const std::string& args) {
 inline pid_t start_cli(const std::string& command, const std::string& log) {
   const pid_t pid = ::fork();
   if (pid == 0) {
-    const std::string cmd = "exec " + command + " > '" + log + "' 2>&1";
+    const std::string cmd = "exec " + with_emulator(command) + " > '" + log + "' 2>&1";
     ::execl("/bin/sh", "sh", "-c", cmd.c_str(), static_cast<char*>(nullptr));
     ::_exit(127);
   }

@@ -116,11 +116,12 @@ TEST(HwrRobotCli, GivenALinkWhenRunOnTeddyThenTheGroundStationHasTheWholeMap) {
   {
     std::ofstream sh(script);
     sh << "ip link set lo up && ip route add 224.0.0.0/4 dev lo || exit 3\n"
-       << "timeout 300 " << HWR_BINARY_DIR << "/apps/hwr-ground/hwr-ground --out " << dir << "/ground --link "
-       << url << " --status-interval 0 > " << dir << "/ground.txt 2>&1 &\n"
+       << "timeout 300 " << hwr::test::emulated_command(HWR_BINARY_DIR "/apps/hwr-ground/hwr-ground")
+       << " --out " << dir << "/ground --link " << url << " --status-interval 0 > " << dir
+       << "/ground.txt 2>&1 &\n"
        << "g=$!\n"
-       << "timeout 300 " << kRobot << " --source tum:" << kTeddy << " --quiet --link " << url
-       << " --robot-id teddy --link-wait 60\n"
+       << "timeout 300 " << hwr::test::emulated_command(kRobot) << " --source tum:" << kTeddy
+       << " --quiet --link " << url << " --robot-id teddy --link-wait 60\n"
        << "rc=$?\n"
        << "kill -TERM $g\n"
        << "wait $g\n"

@@ -67,15 +67,21 @@ std::vector<Eigen::Isometry3d> walk_imu(const std::vector<Eigen::Vector2d>& wayp
   return out;
 }
 
+// Noise is drawn one value per statement, z first: the order of a call's arguments is each
+// compiler's choice, and the walks must be the same under every compiler (the agx tests run them
+// under qemu); z first is what GCC on x86-64 drew when these were arguments of one constructor.
+
 // The magnetometer reading (IMU frame) of an undisturbed field, given R_enu_imu.
 Eigen::Vector3d mag_reading(const Eigen::Matrix3d& R_enu_imu, std::mt19937* rng, double noise_uT) {
   std::normal_distribution<double> n(0.0, noise_uT);
-  return R_enu_imu.transpose() * kFieldEnu_uT + Eigen::Vector3d(n(*rng), n(*rng), n(*rng));
+  const double z = n(*rng), y = n(*rng), x = n(*rng);
+  return R_enu_imu.transpose() * kFieldEnu_uT + Eigen::Vector3d(x, y, z);
 }
 
 core::Geodetic fix_of(const Eigen::Vector3d& p_enu, std::mt19937* rng, double sigma_h, double sigma_v) {
   std::normal_distribution<double> h(0.0, sigma_h), v(0.0, sigma_v);
-  return core::enu_to_geodetic(p_enu + Eigen::Vector3d(h(*rng), h(*rng), v(*rng)), kOrigin);
+  const double up = v(*rng), north = h(*rng), east = h(*rng);
+  return core::enu_to_geodetic(p_enu + Eigen::Vector3d(east, north, up), kOrigin);
 }
 
 struct PriorStore {

@@ -16,6 +16,7 @@
 
 #include <opencv2/imgcodecs.hpp>
 
+#include "cross_run.hpp"
 #include "hwr/core/config.hpp"
 #include "hwr/core/time.hpp"
 #include "hwr/core/tum_trajectory.hpp"
@@ -318,7 +319,8 @@ CliResult run_cli(const std::string& args) {
   EXPECT_TRUE(fs::exists(exe)) << "build the hwr-sim target before the sim tests";
   const std::string out = std::string(HWR_BINARY_DIR) + "/sim_cli_" + std::to_string(::getpid()) + ".out",
                     err = std::string(HWR_BINARY_DIR) + "/sim_cli_" + std::to_string(::getpid()) + ".err";
-  const int status = std::system((exe.string() + " " + args + " >" + out + " 2>" + err).c_str());
+  const int status = std::system(
+      (hwr::test::emulated_command(exe.string()) + " " + args + " >" + out + " 2>" + err).c_str());
   CliResult r;
   r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
   r.stdout_text = slurp(out);

@@ -25,6 +25,27 @@ int uniform_int(Rng* rng, int lo, int hi) {
   return lo + static_cast<int>(rng->next_u64() % static_cast<uint64_t>(hi - lo + 1));
 }
 
+// Draws that fill several values come one statement each: C++ leaves the order in which a call's
+// arguments are evaluated open, and GCC on x86-64, GCC on aarch64 and clang each chose their own, so
+// Point(uniform_int(rng, ...), uniform_int(rng, ...)) gave each platform other textures (random.hpp).
+// The order below, last value first, keeps the texels GCC's x86-64 builds made; the file is built
+// with -ffp-contract=off (CMakeLists.txt), and the texels are then the same on aarch64.
+
+// A texel position, y drawn before x.
+cv::Point random_texel(Rng* rng) {
+  const int y = uniform_int(rng, 0, kSize - 1);
+  const int x = uniform_int(rng, 0, kSize - 1);
+  return {x, y};
+}
+
+// A colour whose channel k is uniform in ck = [lo, hi], the last channel drawn first.
+cv::Scalar random_colour(Rng* rng, const cv::Vec2d& c0, const cv::Vec2d& c1, const cv::Vec2d& c2) {
+  const double v2 = rng->uniform(c2[0], c2[1]);
+  const double v1 = rng->uniform(c1[0], c1[1]);
+  const double v0 = rng->uniform(c0[0], c0[1]);
+  return {v0, v1, v2};
+}
+
 // Row-major kSize x kSize scalar field.
 using Field = std::vector<float>;
 
@@ -111,7 +132,7 @@ std::vector<cv::Vec3f> modulate(const cv::Vec3f& colour, const Field& f, float c
 template <class Colour>
 void speckles(cv::Mat* canvas, Rng* rng, int count, int r0, int r1, Colour colour) {
   for (int i = 0; i < count; ++i) {
-    const cv::Point c(uniform_int(rng, 0, kSize - 1), uniform_int(rng, 0, kSize - 1));
+    const cv::Point c = random_texel(rng);
     const int r = uniform_int(rng, r0, r1);
     const cv::Scalar col = colour(rng);
     draw_wrapped(canvas,
@@ -124,14 +145,16 @@ void speckles(cv::Mat* canvas, Rng* rng, int count, int r0, int r1, Colour colou
 // small speckles have averaged away, so far surfaces keep corners too.
 void far_spots(cv::Mat* canvas, Rng* rng, int count) {
   for (int i = 0; i < count; ++i) {
-    const cv::Point c(uniform_int(rng, 0, kSize - 1), uniform_int(rng, 0, kSize - 1));
+    const cv::Point c = random_texel(rng);
     const double f = rng->uniform() < 0.6 ? rng->uniform(0.35, 0.65) : rng->uniform(1.4, 1.8);
     const cv::Vec3b local = canvas->at<cv::Vec3b>(c);
     const cv::Scalar col(std::min(255.0, local[0] * f + 8), std::min(255.0, local[1] * f + 8),
                          std::min(255.0, local[2] * f + 8));
     const int discs = uniform_int(rng, 2, 4);
     for (int k = 0; k < discs; ++k) {
-      const cv::Point p = c + cv::Point(uniform_int(rng, -5, 5), uniform_int(rng, -5, 5));
+      const int dy = uniform_int(rng, -5, 5);
+      const int dx = uniform_int(rng, -5, 5);
+      const cv::Point p = c + cv::Point(dx, dy);
       const int r = uniform_int(rng, 3, 7);
       draw_wrapped(canvas,
                    [&](cv::Mat* m, cv::Point o) { cv::circle(*m, p + o, r, col, cv::FILLED, cv::LINE_AA); });
@@ -180,7 +203,8 @@ void text(cv::Mat* canvas, Rng* rng, const cv::Point& at, double scale, int thic
 // Random-walk polyline (cracks, scratches).
 void walk(cv::Mat* canvas, Rng* rng, int steps, double step_len, double turn, int thickness,
           const cv::Scalar& col) {
-  cv::Point2d p(rng->uniform(0, kSize), rng->uniform(0, kSize));
+  const double y0 = rng->uniform(0, kSize);
+  cv::Point2d p(rng->uniform(0, kSize), y0);
   double heading = rng->uniform(0, 2 * M_PI);
   for (int s = 0; s < steps; ++s) {
     heading += rng->uniform(-turn, turn);
@@ -210,7 +234,7 @@ void grain(cv::Mat* canvas, Rng* rng, int amplitude) {
 // A printed label or sign: a filled rectangle with a border, text lines and maybe a barcode.
 void label(cv::Mat* canvas, Rng* rng, const cv::Scalar& paper, const cv::Scalar& ink, int w0, int w1) {
   const int w = uniform_int(rng, w0, w1), h = uniform_int(rng, w0 / 2, w1 * 2 / 3);
-  const cv::Point tl(uniform_int(rng, 0, kSize - 1), uniform_int(rng, 0, kSize - 1));
+  const cv::Point tl = random_texel(rng);
   draw_wrapped(canvas, [&](cv::Mat* m, cv::Point o) {
     cv::rectangle(*m, cv::Rect(tl + o, cv::Size(w, h)), paper, cv::FILLED);
     cv::rectangle(*m, cv::Rect(tl + o, cv::Size(w, h)), ink, 2);
@@ -253,15 +277,16 @@ cv::Mat painted_wall(Rng* rng) {
   stains(&c, rng, 80, 15, 90, 0.2f, 0.5f, bgr(90, 100, 110));
   // Scuffs, screw holes and dirt.
   speckles(&c, rng, 4000, 1, 4, [](Rng* r) { return gray(r->uniform(60, 150)); });
-  speckles(&c, rng, 400, 4, 9,
-           [](Rng* r) { return cv::Scalar(r->uniform(60, 200), r->uniform(60, 200), r->uniform(60, 200)); });
+  speckles(&c, rng, 400, 4, 9, [](Rng* r) { return random_colour(r, {60, 200}, {60, 200}, {60, 200}); });
   // Signs and posters.
   for (int i = 0; i < 16; ++i) {
-    const cv::Scalar paper(rng->uniform(120, 255), rng->uniform(120, 255), rng->uniform(120, 255));
+    const cv::Scalar paper = random_colour(rng, {120, 255}, {120, 255}, {120, 255});
     label(&c, rng, paper, gray(rng->uniform(0, 60)), 50, 160);
   }
-  for (int i = 0; i < 30; ++i)
-    walk(&c, rng, uniform_int(rng, 5, 20), 6.0, 0.3, 1, gray(rng->uniform(60, 120)));
+  for (int i = 0; i < 30; ++i) {
+    const cv::Scalar col = gray(rng->uniform(60, 120));
+    walk(&c, rng, uniform_int(rng, 5, 20), 6.0, 0.3, 1, col);
+  }
   far_spots(&c, rng, 400);
   grain(&c, rng, 8);
   return c;
@@ -277,12 +302,16 @@ cv::Mat steel(Rng* rng) {
   // Weld spatter, pits and grinder marks.
   speckles(&c, rng, 9000, 1, 3,
            [](Rng* r) { return gray(r->uniform() < 0.7 ? r->uniform(20, 90) : r->uniform(220, 255)); });
-  for (int i = 0; i < 500; ++i)
-    walk(&c, rng, uniform_int(rng, 1, 4), rng->uniform(5, 15), 0.2, 1, gray(rng->uniform() < 0.5 ? 80 : 235));
+  for (int i = 0; i < 500; ++i) {
+    const cv::Scalar col = gray(rng->uniform() < 0.5 ? 80 : 235);
+    const double step_len = rng->uniform(5, 15);
+    walk(&c, rng, uniform_int(rng, 1, 4), step_len, 0.2, 1, col);
+  }
   // Chalk and marker marks.
   for (int i = 0; i < 45; ++i) {
-    const cv::Point at(uniform_int(rng, 0, kSize - 1), uniform_int(rng, 0, kSize - 1));
-    text(&c, rng, at, rng->uniform(0.5, 1.1), 2, rng->uniform() < 0.5 ? gray(250) : gray(25));
+    const cv::Point at = random_texel(rng);
+    const cv::Scalar col = rng->uniform() < 0.5 ? gray(250) : gray(25);
+    text(&c, rng, at, rng->uniform(0.5, 1.1), 2, col);
   }
   far_spots(&c, rng, 400);
   grain(&c, rng, 8);
@@ -303,8 +332,7 @@ cv::Mat rusty_steel(Rng* rng) {
   stains(&c, rng, 60, 15, 90, 0.2f, 0.5f, bgr(20, 40, 70));
   speckles(&c, rng, 8000, 1, 3,
            [](Rng* r) { return r->uniform() < 0.6 ? gray(r->uniform(10, 60)) : cv::Scalar(60, 130, 210); });
-  speckles(&c, rng, 500, 3, 7,
-           [](Rng* r) { return cv::Scalar(r->uniform(20, 80), r->uniform(50, 120), r->uniform(90, 190)); });
+  speckles(&c, rng, 500, 3, 7, [](Rng* r) { return random_colour(r, {20, 80}, {50, 120}, {90, 190}); });
   far_spots(&c, rng, 400);
   grain(&c, rng, 10);
   return c;
@@ -333,16 +361,16 @@ cv::Mat wood(Rng* rng) {
     }
   }
   for (int i = 0; i < 60; ++i) {  // knots
-    const cv::Point k(uniform_int(rng, 0, kSize - 1), uniform_int(rng, 0, kSize - 1));
-    const cv::Size axes(uniform_int(rng, 6, 16), uniform_int(rng, 3, 8));
+    const cv::Point k = random_texel(rng);
+    const int minor = uniform_int(rng, 3, 8);
+    const cv::Size axes(uniform_int(rng, 6, 16), minor);
     draw_wrapped(&c, [&](cv::Mat* m, cv::Point o) {
       cv::ellipse(*m, k + o, axes, 0, 0, 360, cv::Scalar(30, 60, 100), cv::FILLED, cv::LINE_AA);
       cv::ellipse(*m, k + o, axes + cv::Size(4, 3), 0, 0, 360, cv::Scalar(40, 80, 130), 2, cv::LINE_AA);
     });
   }
   stains(&c, rng, 50, 15, 70, 0.15f, 0.45f, bgr(30, 50, 70));
-  speckles(&c, rng, 6000, 1, 3,
-           [](Rng* r) { return cv::Scalar(r->uniform(20, 70), r->uniform(40, 100), r->uniform(60, 140)); });
+  speckles(&c, rng, 6000, 1, 3, [](Rng* r) { return random_colour(r, {20, 70}, {40, 100}, {60, 140}); });
   far_spots(&c, rng, 400);
   grain(&c, rng, 8);
   return c;
@@ -367,16 +395,19 @@ cv::Mat cardboard(Rng* rng) {
   }
   // Shipping labels and printed marks, kept to moderate contrast so that they do not outbid the
   // rest of the surface for ORB's strongest corners.
-  for (int i = 0; i < 14; ++i)
-    label(&c, rng, gray(rng->uniform(170, 200)), gray(rng->uniform(60, 90)), 50, 130);
+  for (int i = 0; i < 14; ++i) {
+    const cv::Scalar ink = gray(rng->uniform(60, 90));
+    label(&c, rng, gray(rng->uniform(170, 200)), ink, 50, 130);
+  }
   for (int i = 0; i < 50; ++i) {
-    const cv::Point at(uniform_int(rng, 0, kSize - 1), uniform_int(rng, 0, kSize - 1));
-    text(&c, rng, at, rng->uniform(0.6, 1.4), 2, rng->uniform() < 0.7 ? gray(60) : cv::Scalar(50, 50, 140));
+    const cv::Point at = random_texel(rng);
+    const cv::Scalar col = rng->uniform() < 0.7 ? gray(60) : cv::Scalar(50, 50, 140);
+    text(&c, rng, at, rng->uniform(0.6, 1.4), 2, col);
   }
   stains(&c, rng, 60, 15, 70, 0.2f, 0.5f, bgr(40, 70, 100));
   speckles(&c, rng, 9000, 1, 3, [](Rng* r) {
-    return r->uniform() < 0.7 ? cv::Scalar(r->uniform(10, 50), r->uniform(30, 80), r->uniform(50, 110))
-                              : cv::Scalar(r->uniform(150, 200), r->uniform(200, 240), r->uniform(220, 255));
+    return r->uniform() < 0.7 ? random_colour(r, {10, 50}, {30, 80}, {50, 110})
+                              : random_colour(r, {150, 200}, {200, 240}, {220, 255});
   });
   far_spots(&c, rng, 400);
   grain(&c, rng, 8);
@@ -397,8 +428,9 @@ cv::Mat pipe(Rng* rng) {
   speckles(&c, rng, 7000, 1, 3,
            [](Rng* r) { return gray(r->uniform() < 0.6 ? r->uniform(10, 70) : r->uniform(200, 250)); });
   for (int i = 0; i < 50; ++i) {  // stencilled flow markings
-    const cv::Point at(uniform_int(rng, 0, kSize - 1), uniform_int(rng, 0, kSize - 1));
-    text(&c, rng, at, rng->uniform(0.5, 1.0), 2, rng->uniform() < 0.5 ? gray(20) : gray(245));
+    const cv::Point at = random_texel(rng);
+    const cv::Scalar col = rng->uniform() < 0.5 ? gray(20) : gray(245);
+    text(&c, rng, at, rng->uniform(0.5, 1.0), 2, col);
   }
   far_spots(&c, rng, 400);
   grain(&c, rng, 8);
