@@ -7,11 +7,11 @@
 # Usage: toolchain/agx-test.sh            the CI set (below)
 #        toolchain/agx-test.sh --all      every test (hours: see docs/hardware.md)
 #        toolchain/agx-test.sh ARGS...    ctest arguments of your own
-# The CI set is every test but those listed in toolchain/agx-qemu-slow.txt: tests that take a second
-# or more on the host (whole sim runs, the pipeline on a sequence, relocalization against a prior
-# map), which Embree and the pipeline run ~50-400x slower emulated (a 4 s sim test takes ~380 s),
-# and one mapio test whose 5 s link cut leaves a backlog the emulated Draco encoder cannot clear in
-# time. They all run on the host in the README's test command.
+# The CI set is every test but those listed in toolchain/agx-qemu-slow.txt: tests that take minutes
+# emulated (whole sim runs, the pipeline on a sequence, relocalization against a prior map: Embree and
+# the pipeline run ~50-400x slower under qemu) and one mapio test whose 5 s link cut leaves a backlog
+# the emulated Draco encoder cannot clear in time. They all run on the host in the README's test
+# command.
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
 
