@@ -18,8 +18,13 @@ cd "$(dirname "${BASH_SOURCE[0]}")/.."
 toolchain/install-deps.sh --agx
 cmake --preset agx
 cmake --build --preset agx
-# The left-out names as one anchored regex ('.' taken literally).
-slow_regex="^($(grep -v -e '^#' -e '^$' toolchain/agx-qemu-slow.txt | sed 's/[.]/[.]/g' | paste -sd '|'))\$"
+# The left-out names as one anchored regex ('.' taken literally; comments and blanks dropped).
+slow_names=$(sed -e 's/#.*//' -e 's/[[:space:]]*$//' toolchain/agx-qemu-slow.txt | grep -v '^$' || true)
+if [[ -z "$slow_names" ]]; then
+  echo "agx-test: toolchain/agx-qemu-slow.txt names no test" >&2
+  exit 2
+fi
+slow_regex="^($(sed 's/[.]/[.]/g' <<<"$slow_names" | paste -sd '|'))\$"
 ci_set=(-E "$slow_regex")
 if [[ $# -eq 0 ]]; then
   set -- "${ci_set[@]}"
@@ -27,16 +32,17 @@ elif [[ "$1" == "--all" ]]; then
   shift
 fi
 status=0
-rm -f build/agx/Testing/Temporary/LastTestsFailed.log  # ctest leaves an earlier run's list when all pass
 ctest --preset agx "$@" || status=$?
 
 # Per test target (each suite's ctest label is its module): tests, and how many passed.
 ctest --preset agx --show-only=json-v1 "$@" > build/agx/agx-tests.json
-python3 - build/agx/agx-tests.json build/agx/Testing/Temporary/LastTestsFailed.log <<'PY'
+# ctest leaves an earlier run's failure list in place when every test passes: read it only after a
+# failure (and keep it, for --rerun-failed).
+python3 - build/agx/agx-tests.json build/agx/Testing/Temporary/LastTestsFailed.log "$status" <<'PY'
 import collections, json, os, sys
 tests = json.load(open(sys.argv[1]))["tests"]
 failed = set()
-if os.path.exists(sys.argv[2]):
+if sys.argv[3] != "0" and os.path.exists(sys.argv[2]):
     failed = {line.strip().split(":", 1)[1] for line in open(sys.argv[2]) if ":" in line}
 runs, passed = collections.Counter(), collections.Counter()
 for t in tests:

@@ -16,7 +16,8 @@
 
 namespace hwr::testing {
 
-// `command` with the emulator in front when it starts with a program of this build.
+// `command` with the emulator in front when it starts with a program of this build (a command that
+// starts with `VAR=...`, `timeout` or a quoted path is not recognised: put the program first).
 inline std::string with_emulator(const std::string& command) {
   const std::string built = HWR_BINARY_DIR "/";
   return command.rfind(built, 0) == 0 ? hwr::test::emulated_command(command) : command;

@@ -240,6 +240,9 @@ TEST(Scenario, GivenBaseLabAndOverridesWhenParsedThenOnlyTheOverriddenFieldsChan
   EXPECT_EQ(s->imu.noise.gyro_noise_density, lab.imu.noise.gyro_noise_density);
   EXPECT_TRUE(s->render.area_sampling);
   EXPECT_FALSE(lab.render.area_sampling);
+  auto again = parse_scenario_yaml(scenario_to_yaml(s.value()), "lab-fast-resolved.yaml");
+  ASSERT_TRUE(again.ok()) << again.status().to_string();
+  EXPECT_TRUE(again->render.area_sampling);
   EXPECT_EQ(s->render.ambient, lab.render.ambient);
   ASSERT_EQ(s->scene.boxes.size(), 1u);  // lists replace
   EXPECT_EQ(s->scene.boxes[0].material, Material::kWood);

@@ -532,7 +532,9 @@ void EmbreeRenderer::render(const Eigen::Isometry3d& T_scene_cam, const hal::Pin
 void EmbreeRenderer::integrate_colour(int width, const ShadeContext& c, const Eigen::Matrix3f& R,
                                       const hal::PinholeIntrinsics& K, cv::Mat* bgr) const {
   // Rotated grid (RGSS): every sample on its own row and column, so edges near horizontal or
-  // vertical get five levels of coverage.
+  // vertical get five levels of coverage. Each sample still reads the texture at the whole pixel's
+  // mip level, so texture detail is filtered by the mip chain and again by the average (a little
+  // softer than a true box filter over the pixel); edges and sub-pixel geometry are what it is for.
   static constexpr float kOffsetPx[4][2] = {
       {0.125f, -0.375f}, {0.375f, 0.125f}, {-0.125f, 0.375f}, {-0.375f, -0.125f}};
   thread_local cv::Mat sample, sum;

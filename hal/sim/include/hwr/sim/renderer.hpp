@@ -27,7 +27,8 @@ struct RenderOptions {
   int packet_width = 0;
   // Colour integrated over each pixel's area, as a camera's pixel collects the light falling on all
   // of it: false samples the pixel centre only (a feature narrower than a pixel shows only where it
-  // covers a centre, fully dark or not at all: a 2 mm butt gap at 1.5 m is 0.3-0.5 px); true
+  // covers a centre, fully dark or not at all: a 2 mm butt gap seen from 1.5-2.5 m at 20-35 deg down
+  // is 0.3-0.5 px across); true
   // averages the centre and four rotated-grid samples at (+-1/8, -+3/8) px and (+-3/8, +-1/8) px, a
   // box filter over the pixel (5 rays a pixel: about 4.5x the render time, hwr-bench sim-render
   // --area-sampling). Depth is the centre ray's either way.
