@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <limits>
 #include <set>
+#include <vector>
 
 #include "hwr/mapio/operator_wire.hpp"
 
@@ -141,6 +142,7 @@ json state_json(const ViewerSources& s, LinkRateMeter* rates, int64_t now_ns, co
   json robots = json::array();
   for (const auto& [robot_id, run_id] : latest_runs(s)) {
     json r = {{"robot_id", robot_id}, {"run_id", id_text(std::max<int64_t>(run_id, 0))}};
+    const std::vector<hwr_lcm::detection_t> robot_detections = s.console.detections(robot_id);  // one copy
     const mapio::RobotTelemetry* t = s.telemetry.robot(robot_id);
     r["pose"] = nullptr;
     r["trajectory_poses"] = 0;
@@ -163,7 +165,7 @@ json state_json(const ViewerSources& s, LinkRateMeter* rates, int64_t now_ns, co
       }
       // The newest kMaxListedKeyframes, and every one a detection of this run was seen on.
       std::set<int64_t> referenced;
-      for (const hwr_lcm::detection_t& d : s.console.detections(robot_id))
+      for (const hwr_lcm::detection_t& d : robot_detections)
         if (d.run_id == run_id) referenced.insert(d.keyframe_t_ns);
       const size_t first_newest =
           t->keyframes.size() > kMaxListedKeyframes ? t->keyframes.size() - kMaxListedKeyframes : 0;
@@ -207,7 +209,7 @@ json state_json(const ViewerSources& s, LinkRateMeter* rates, int64_t now_ns, co
                  {"last_chunk_age_s", age_s}};
     json detections = json::array();
     // The latest run's list: an earlier run's detection ids name other regions.
-    for (const hwr_lcm::detection_t& d : s.console.detections(robot_id))
+    for (const hwr_lcm::detection_t& d : robot_detections)
       if (d.run_id == run_id) detections.push_back(detection_json(d));
     r["detections"] = detections;
     json commands = json::array();

@@ -286,11 +286,15 @@ TEST(HwrGroundViewer, GivenRobotTelemetryThenApiShowsItAcceptsARejectAndSurvives
   ASSERT_EQ(sent->status, 200) << sent->body;
   const std::string command_id = json::parse(sent->body)["command_id"];
   hwr_lcm::operator_command_t command;
-  bool received = false;
-  for (int i = 0; i < 300 && !received; ++i) {
-    received = robot.value()->take_operator_command(&command);
-    if (!received) std::this_thread::sleep_for(std::chrono::milliseconds(100));
-  }
+  // The robot's side takes the ground's command off the link, polling for up to 30 s.
+  auto take_command = [&](hwr_lcm::operator_command_t* taken) {
+    for (int i = 0; i < 300; ++i) {
+      if (robot.value()->take_operator_command(taken)) return true;
+      std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    }
+    return false;
+  };
+  bool received = take_command(&command);
   ASSERT_TRUE(received);
   EXPECT_EQ(std::to_string(command.command_id), command_id);
   EXPECT_EQ(command.kind, 1);
@@ -318,11 +322,7 @@ TEST(HwrGroundViewer, GivenRobotTelemetryThenApiShowsItAcceptsARejectAndSurvives
   ASSERT_TRUE(added);
   ASSERT_EQ(added->status, 200) << added->body;
   const std::string add_id = json::parse(added->body)["command_id"];
-  received = false;
-  for (int i = 0; i < 300 && !received; ++i) {
-    received = robot.value()->take_operator_command(&command);
-    if (!received) std::this_thread::sleep_for(std::chrono::milliseconds(100));
-  }
+  received = take_command(&command);
   ASSERT_TRUE(received);
   EXPECT_EQ(std::to_string(command.command_id), add_id);
   EXPECT_EQ(command.kind, 3);
