@@ -12,7 +12,8 @@ namespace {
 const std::string kTeddy = HWR_DATA_DIR "/tum-fr3-teddy-200/rgbd_dataset_freiburg3_teddy";
 }  // namespace
 
-core::Expected<Sequence> open_sequence(const std::string& name, double duration_s, bool area_sampling) {
+core::Expected<Sequence> open_sequence(const std::string& name, double duration_s,
+                                       const SimRendering& rendering) {
   Sequence s;
   s.name = name;
   if (name == "teddy") {
@@ -27,7 +28,10 @@ core::Expected<Sequence> open_sequence(const std::string& name, double duration_
 #if HWR_WITH_SIM
   auto spec = sim::load_scenario(name);
   if (!spec.ok()) return spec.status();
-  spec->render.area_sampling = spec->render.area_sampling || area_sampling;
+  spec->render.area_sampling = spec->render.area_sampling || rendering.area_sampling;
+  spec->render.shadows = spec->render.shadows || rendering.shadows;
+  if (rendering.ambient_occlusion_rays > 0)
+    spec->render.ambient_occlusion_rays = rendering.ambient_occlusion_rays;
   auto live = sim::open_sim_live_log(spec.value(), duration_s);
   if (!live.ok()) return live.status();
   s.log = std::move(live->log);
@@ -48,7 +52,7 @@ core::Expected<Sequence> open_sequence(const std::string& name, double duration_
   return s;
 #else
   (void)duration_s;
-  (void)area_sampling;
+  (void)rendering;
   return core::Unavailable("sequence " + name + ": this build has no simulator");
 #endif
 }

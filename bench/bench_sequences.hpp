@@ -26,9 +26,18 @@ struct Sequence {
 #endif
 };
 
-// duration_s > 0 cuts a sim sequence (hwr-sim --duration); area_sampling renders a sim sequence's
-// colour integrated over each pixel (sim::RenderOptions::area_sampling). Both are ignored for teddy.
+// How a sim sequence's colour is rendered, on top of its scenario's render options: area_sampling and
+// shadows switch those on (a scenario's own are kept), ambient_occlusion_rays > 0 replaces the
+// scenario's ray count (sim::RenderOptions; the presets have all three off).
+struct SimRendering {
+  bool area_sampling = false;
+  bool shadows = false;
+  int ambient_occlusion_rays = 0;
+};
+
+// duration_s > 0 cuts a sim sequence (hwr-sim --duration). Both it and `rendering` are ignored for
+// teddy.
 core::Expected<Sequence> open_sequence(const std::string& name, double duration_s,
-                                       bool area_sampling = false);
+                                       const SimRendering& rendering = {});
 
 }  // namespace hwr::bench

@@ -13,12 +13,15 @@
 // matched seams / seams in view; endpoint error over the ends seen on both sides; time = thread CPU
 // of detect(). Fused (seam_precision=, seam_recall=, seam_endpoint_mm=, the figures): every
 // detection of the sequence goes to a SeamFusion (detect/seam_fusion.hpp); its fused seams are
-// matched to the seams seen in at least one frame, a true end known when some frame saw it. The recall
+// matched to the seams seen in at least one frame, a true end known when some frame saw it (supporting
+// detections, Detection::support_only, go to the fusion only: they are not claims of a keyframe). The recall
 // of each kind (seam_recall_fillet=, seam_recall_butt=) is printed beside the recall over all seams.
 // For a reader, each fused seam that matches no true one and each true seam seen but not found (with
 // the keyframes that saw and matched it) is printed in the world frame. --area-sampling renders the
 // colour integrated over each pixel (sim::RenderOptions::area_sampling: five rays a pixel) instead of
-// at its centre; the key lines then follow detect_area_sampling=1.
+// at its centre; --shadows and --ambient-occlusion RAYS light it with the light's shadows and
+// ambient occlusion (sim::RenderOptions); detect_area_sampling=, detect_shadows= and
+// detect_ambient_occlusion_rays= say what the command line asked for (the presets have all off).
 
 #include "bench_command.hpp"
 
@@ -92,7 +95,7 @@ int run_detect(int argc, char** argv) {
   std::string sequences = "lab,outdoor";
   int step = 10;
   double duration_s = 0.0, max_range_m = 3.5;  // the detector's depth limit (OrganizedCloudConfig)
-  bool area_sampling = false;
+  SimRendering rendering;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     auto value = [&](const char* what) -> std::string {
@@ -115,12 +118,20 @@ int run_detect(int argc, char** argv) {
     } else if (a == "--max-range") {
       max_range_m = std::atof(value("--max-range").c_str());
     } else if (a == "--area-sampling") {
-      area_sampling = true;
+      rendering.area_sampling = true;
+    } else if (a == "--shadows") {
+      rendering.shadows = true;
+    } else if (a == "--ambient-occlusion") {
+      rendering.ambient_occlusion_rays = std::atoi(value("--ambient-occlusion").c_str());
+      if (rendering.ambient_occlusion_rays < 1 || rendering.ambient_occlusion_rays > 64) {
+        std::fprintf(stderr, "hwr-bench detect: --ambient-occlusion takes 1-64 rays\n");
+        return 2;
+      }
     } else {
       std::fprintf(
           stderr,
           "usage: hwr-bench detect [--sequences lab,outdoor] [--step N] [--duration S] [--max-range M] "
-          "[--area-sampling]\n");
+          "[--area-sampling] [--shadows] [--ambient-occlusion RAYS]\n");
       return a == "--help" || a == "-h" ? 0 : 2;
     }
   }
@@ -133,10 +144,12 @@ int run_detect(int argc, char** argv) {
   std::printf(
       "hwr-bench detect: the geometric seam detector per keyframe (every %d-th frame, true poses), seams in "
       "view "
-      "within %.1f m; match: %.0f deg, %.0f mm, %.0f %% overlap; colour %s\n",
+      "within %.1f m; match: %.0f deg, %.0f mm, %.0f %% overlap; colour %s, %s, ambient occlusion %d "
+      "rays\n",
       step, max_range_m, detect::SeamMatchConfig{}.max_angle_rad * 57.29577951308232,
       detect::SeamMatchConfig{}.max_lateral_m * 1e3, detect::SeamMatchConfig{}.min_overlap * 100,
-      area_sampling ? "integrated over each pixel (5 rays)" : "at each pixel's centre");
+      rendering.area_sampling ? "integrated over each pixel (5 rays)" : "at each pixel's centre",
+      rendering.shadows ? "with the light's shadows" : "no shadows", rendering.ambient_occlusion_rays);
   std::printf("%-10s %7s %9s %7s %9s %9s %9s %13s %13s %11s\n", "sequence", "frames", "w/ seams", "dets",
               "precision", "recall", "fillets", "endpoint mm", "lateral mm", "detect ms");
   Tally all;
@@ -186,7 +199,7 @@ int run_detect(int argc, char** argv) {
     keys.push_back(buf);
   };
   for (const std::string& name : names) {
-    auto seq = open_sequence(name, duration_s, area_sampling);
+    auto seq = open_sequence(name, duration_s, rendering);
     if (!seq.ok()) {
       std::fprintf(stderr, "hwr-bench detect: %s: %s\n", name.c_str(), seq.status().message().c_str());
       return 1;
@@ -258,7 +271,8 @@ int run_detect(int argc, char** argv) {
       }
       for (int k = 0; k < dets.size(); ++k) fusion.add(dets[k]);
       found.clear();
-      for (int k = 0; k < dets.size(); ++k) found.push_back(detect::seam_of(dets[k]));
+      for (int k = 0; k < dets.size(); ++k)
+        if (!dets[k].support_only) found.push_back(detect::seam_of(dets[k]));  // supporting: fusion only
       const detect::SeamScore score = detect::score_seams(found, visible);
       ++t.frames;
       t.frames_with_seams += visible.empty() ? 0 : 1;
@@ -343,7 +357,8 @@ int run_detect(int argc, char** argv) {
                                 t.fused_lateral_mm.end());
   }
   report("all", all);
-  std::printf("detect_area_sampling=%d\n", area_sampling ? 1 : 0);
+  std::printf("detect_area_sampling=%d\ndetect_shadows=%d\ndetect_ambient_occlusion_rays=%d\n",
+              rendering.area_sampling ? 1 : 0, rendering.shadows ? 1 : 0, rendering.ambient_occlusion_rays);
   for (const std::string& k : keys) std::printf("%s\n", k.c_str());
   return 0;
 }

@@ -340,7 +340,8 @@ int run_segmentation(int argc, char** argv) {
           view.T_world_cam = kf->T_world_cam;
           if (!seam_detector->detect(view, &seams).ok()) continue;
           for (int i = 0; i < seams.size(); ++i)
-            mapper->add_weld_region(recon::weld_region_from_detection(seams[i]), kf->T_world_cam);
+            if (!seams[i].support_only)  // a region only where the detector is confident
+              mapper->add_weld_region(recon::weld_region_from_detection(seams[i]), kf->T_world_cam);
           continue;
         }
         const auto truth = truth_at_frame.find(kf->t_ns);

@@ -2,7 +2,9 @@
 // representative welding workshop (room, boxes, I-beams, pipes, four weld joints) along a moving
 // camera path. Acceptance: >= 60 frames/s on one core (RelWithDebInfo). `--scene=<preset>` runs a
 // scenario preset (lab, outdoor, ...) along its own trajectory instead. `--area-sampling` renders the
-// colour integrated over each pixel (sim::RenderOptions::area_sampling, five rays a pixel).
+// colour integrated over each pixel (sim::RenderOptions::area_sampling, five rays a pixel);
+// `--shadows` casts the light's shadows (a shadow ray per lit hit) and `--ambient-occlusion=N` darkens
+// nooks and gaps with N rays per hit (sim::RenderOptions::shadows, ambient_occlusion_rays).
 //
 // Also Google Benchmark micro-benchmarks (run with `hwr-bench micro --benchmark_filter=Sim`).
 
@@ -169,7 +171,8 @@ int run_sim_render(int argc, char** argv) {
   int frames = 300;
   int packet_width = 0;
   std::string scene = "workshop";
-  bool area_sampling = false;
+  bool area_sampling = false, shadows = false;
+  int ambient_occlusion_rays = 0;
   for (int a = 1; a < argc; ++a) {
     if (std::strncmp(argv[a], "--frames=", 9) == 0) {
       frames = std::max(1, std::atoi(argv[a] + 9));
@@ -179,10 +182,18 @@ int run_sim_render(int argc, char** argv) {
       scene = argv[a] + 8;
     } else if (std::strcmp(argv[a], "--area-sampling") == 0) {
       area_sampling = true;
+    } else if (std::strcmp(argv[a], "--shadows") == 0) {
+      shadows = true;
+    } else if (std::strncmp(argv[a], "--ambient-occlusion=", 20) == 0) {
+      ambient_occlusion_rays = std::atoi(argv[a] + 20);
+      if (ambient_occlusion_rays < 1 || ambient_occlusion_rays > 64) {
+        std::fprintf(stderr, "sim-render: --ambient-occlusion takes 1-64 rays\n");
+        return 2;
+      }
     } else {
       std::fprintf(stderr,
                    "sim-render: unknown argument '%s' (use --frames=N, --packet=0|1|4|8|16, "
-                   "--scene=workshop|<scenario preset>, --area-sampling)\n",
+                   "--scene=workshop|<scenario preset>, --area-sampling, --shadows, --ambient-occlusion=N)\n",
                    argv[a]);
       return 2;
     }
@@ -196,6 +207,8 @@ int run_sim_render(int argc, char** argv) {
   sim::RenderOptions options = workload->options;
   options.packet_width = packet_width;
   options.area_sampling = options.area_sampling || area_sampling;
+  options.shadows = options.shadows || shadows;
+  if (ambient_occlusion_rays > 0) options.ambient_occlusion_rays = ambient_occlusion_rays;
 
   const auto t_build0 = std::chrono::steady_clock::now();
   auto renderer = sim::Renderer::create(workload->scene);
@@ -232,9 +245,12 @@ int run_sim_render(int argc, char** argv) {
   cpu_ms /= frames;
   const int width = options.packet_width == 0 ? (*renderer)->native_packet_width() : options.packet_width;
 
-  std::printf("sim-render: %dx%d RGB-D, one thread, packet width %d, %s scene, colour %s\n", K.width,
-              K.height, width, scene.c_str(),
-              options.area_sampling ? "integrated over each pixel (5 rays)" : "at each pixel's centre");
+  std::printf(
+      "sim-render: %dx%d RGB-D, one thread, packet width %d, %s scene, colour %s, %s, ambient "
+      "occlusion %d rays\n",
+      K.width, K.height, width, scene.c_str(),
+      options.area_sampling ? "integrated over each pixel (5 rays)" : "at each pixel's centre",
+      options.shadows ? "with the light's shadows" : "no shadows", options.ambient_occlusion_rays);
   std::printf("  scene build        %8.1f ms (meshes, BVH, textures)\n",
               std::chrono::duration<double, std::milli>(t_build1 - t_build0).count());
   std::printf("  %-8s %10s %9s %9s %9s %9s %10s %9s %8s\n", "frames", "triangles", "mean ms", "p50 ms",
@@ -242,7 +258,8 @@ int run_sim_render(int argc, char** argv) {
   std::printf("  %-8d %10zu %9.3f %9.3f %9.3f %9.3f %10.1f %9.3f %7.1f%%\n", frames,
               (*renderer)->triangle_count(), mean, pct(0.5), pct(0.99), sorted.back(), fps, cpu_ms,
               100.0 * valid_fraction / frames);
-  std::printf("sim_render_area_sampling=%d\n", options.area_sampling ? 1 : 0);
+  std::printf("sim_render_area_sampling=%d\nsim_render_shadows=%d\nsim_render_ambient_occlusion_rays=%d\n",
+              options.area_sampling ? 1 : 0, options.shadows ? 1 : 0, options.ambient_occlusion_rays);
   std::printf("sim_render_fps=%.1f\n", fps);
   std::printf("sim_render_ms_p99=%.3f\n", pct(0.99));
   std::printf("sim_render_cpu_fps=%.1f\n", 1000.0 / cpu_ms);

@@ -391,6 +391,7 @@ void detect_regions(Robot* r) {
           r->operator_channel->suppress(kf->T_world_cam * d.T_cam_box, d.half_size_m))
         continue;  // on a region the operator rejected
       if (r->operator_channel != nullptr) r->operator_channel->add_detection(d);
+      if (d.support_only) continue;  // only supports a seam a confident detection finds (seam_fusion.hpp)
       r->mapper->add_weld_region(hwr::recon::weld_region_from_detection(d), kf->T_world_cam);
       ++r->region_detections;
     }

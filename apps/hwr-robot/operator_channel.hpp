@@ -43,8 +43,9 @@ class OperatorChannel {
 
   // Whether a detection with this box (run's world frame) lies on a rejected region (counted).
   bool suppress(const Eigen::Isometry3d& T_world_box, const Eigen::Vector3d& half_size_m);
-  // A detection the map took (world members filled): its seam joins the fusion (seam_fusion.hpp) that
-  // gives each region of the list its seam line.
+  // A detection of a keyframe (world members filled), supporting ones too (Detection::support_only,
+  // which the map does not take): its seam joins the fusion (seam_fusion.hpp) that gives each region
+  // of the list its seam line.
   void add_detection(const detect::Detection& detection);
 
   // Mapping task, after the new keyframes' detections went into the fine map. T_map_world: the frame

@@ -71,10 +71,11 @@ core::Expected<ButtFinder> ButtFinder::create(const ButtConfig& c, const DepthNo
         "segments in [3, 8], min_window_samples >= 1");
   }
   if (!(c.dark_ratio > 0 && c.dark_ratio < 1) || !(c.dark_offset_px >= 1) || !(c.min_segment_z >= 0) ||
-      !(c.min_plate_width_m > 0) || !(c.min_z > 0) || !(c.max_depth_residual_m > 0)) {
+      !(c.min_plate_width_m > 0) || !(c.min_z > 0) || !(c.support_z > 0 && c.support_z <= c.min_z) ||
+      !(c.max_depth_residual_m > 0)) {
     return core::InvalidArgument(
-        "butt finder: need dark_ratio in (0, 1), dark_offset_px >= 1, min_segment_z >= 0, and "
-        "min_plate_width_m, min_z, max_depth_residual_m positive");
+        "butt finder: need dark_ratio in (0, 1), dark_offset_px >= 1, min_segment_z >= 0, support_z in "
+        "(0, min_z], and min_plate_width_m, min_z, max_depth_residual_m positive");
   }
   if (!(c.min_length_m > 0) || !(c.max_length_m > c.min_length_m) || !(c.end_band_near_m >= 0) ||
       !(c.end_band_far_m > c.end_band_near_m) || !(c.end_search_m > 0) || c.end_margin_px < 0 ||
@@ -355,7 +356,12 @@ void ButtFinder::sweep_direction(const Plane2d& plane, int n_samples, int n_hull
                                   window(depth_sum_, seg, k + cw + gw, k + cw + gw + sw) / dr);
         depth.add(dip / (sigma_z_m * std::sqrt(1.0 / dc + 0.25 / dl + 0.25 / dr)), c.min_segment_z);
       }
-      return std::max(dark.z(), depth.z());
+      // The cues' noises are independent (the texture and the pixel noise; the stereo noise): where
+      // both are measured, their Stouffer sum counts too (a gap a little dark and a little deep).
+      const double z_dark = dark.z(), z_depth = depth.z();
+      const double z_both =
+          std::isfinite(z_dark) && std::isfinite(z_depth) ? (z_dark + z_depth) / std::sqrt(2.0) : -kInf;
+      return std::max(std::max(z_dark, z_depth), z_both);
     };
     // Offsets at least min_plate_width_m inside the region on both sides.
     const int k_lo = std::max(k_first, static_cast<int>(std::ceil(c.min_plate_width_m / bin - 0.5 * cw)));
@@ -363,7 +369,7 @@ void ButtFinder::sweep_direction(const Plane2d& plane, int n_samples, int n_hull
         std::min(k_last, static_cast<int>(std::floor((span - c.min_plate_width_m) / bin - 0.5 * cw)));
     for (int k = k_lo; k <= k_hi; ++k) {
       const double z = z_at(k);
-      if (!(z > best->z) || z < c.min_z) continue;
+      if (!(z > best->z) || z < c.support_z) continue;
       // Sub-bin offset: the vertex of the parabola through the significance at k - 1, k, k + 1.
       const double zm = z_at(k - 1), zp = z_at(k + 1), curvature = zm - 2.0 * z + zp;
       const double delta = std::isfinite(zm) && std::isfinite(zp) && curvature < 0.0
@@ -534,6 +540,7 @@ int ButtFinder::find(const OrganizedCloud& cloud, const RaisedRegionFinder& rais
     Detection det;
     det.source = DetectionSource::kGeometry;
     det.kind = SeamKind::kButt;
+    det.support_only = line.z < c.min_z;
     det.seam_cam[0] = on_line + t0 * along;
     det.seam_cam[1] = on_line + t1 * along;
     // A fixed orientation (left to right in the image), as the fillets'.

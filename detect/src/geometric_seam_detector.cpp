@@ -93,7 +93,11 @@ core::Status GeometricSeamDetector::detect(const KeyframeView& view, DetectionLi
   stats_.raised_regions = raised_.find(cloud_, planes_, up_cam);
   stats_.candidates += butts_.find(cloud_, raised_, bgr, *view.depth_m, &candidates_);
   candidates_.keep_most_confident(candidates_.capacity());
-  for (int i = 0; i < candidates_.size(); ++i) {
+  // Confident detections first, then supporting ones: a supporting line never displaces a confident
+  // one (as a duplicate or past max_detections), whatever their confidences.
+  for (int k = 0; k < 2 * candidates_.size(); ++k) {
+    const int i = k % candidates_.size();
+    if (candidates_[i].support_only != (k >= candidates_.size())) continue;
     bool duplicate = false;
     for (int j = 0; j < out->size() && !duplicate; ++j) {
       duplicate =

@@ -23,6 +23,7 @@ bool SeamFusion::add(const Detection& d) {
   const Eigen::Vector3d a = d.seam_world[0], b = d.seam_world[1];
   const double length = (b - a).norm();
   if (!(length > 1e-6)) return false;
+  ++added_;
   const Eigen::Vector3d u = (b - a) / length;
   const SeamMatchConfig& m = config_.match;
   for (Track& t : tracks_) {
@@ -45,6 +46,8 @@ bool SeamFusion::add(const Detection& d) {
     t.mid_sum += 0.5 * (a + b);
     t.dir_sum += t.dir_sum.dot(u) >= 0 ? u : Eigen::Vector3d(-u);
     ++t.n;
+    t.confident += d.support_only ? 0 : 1;
+    t.grew = added_;
     t.t_lo = std::min(t.t_lo, ta);
     t.t_hi = std::max(t.t_hi, tb);
     // The first max_ends_per_track seen ends make each median: a run of any length keeps bounded memory.
@@ -53,7 +56,13 @@ bool SeamFusion::add(const Detection& d) {
     if (b_observed && t.ends_hi.size() < cap) t.ends_hi.push_back(tb);
     return true;
   }
-  if (static_cast<int>(tracks_.size()) >= config_.max_tracks) return false;
+  Track* slot = nullptr;
+  if (static_cast<int>(tracks_.size()) >= config_.max_tracks) {
+    // Full: the unconfirmed track that grew longest ago makes room.
+    for (Track& t : tracks_)
+      if (t.confident == 0 && (slot == nullptr || t.grew < slot->grew)) slot = &t;
+    if (slot == nullptr) return false;
+  }
   Track t;
   t.kind = d.kind;
   t.origin = 0.5 * (a + b);
@@ -61,18 +70,24 @@ bool SeamFusion::add(const Detection& d) {
   t.mid_sum = t.origin;
   t.dir_sum = u;
   t.n = 1;
+  t.confident = d.support_only ? 0 : 1;
+  t.grew = added_;
   t.t_lo = -0.5 * length;
   t.t_hi = 0.5 * length;
   if (d.end_observed[0]) t.ends_lo.push_back(t.t_lo);
   if (d.end_observed[1]) t.ends_hi.push_back(t.t_hi);
-  tracks_.push_back(std::move(t));
+  if (slot != nullptr) {
+    *slot = std::move(t);
+  } else {
+    tracks_.push_back(std::move(t));
+  }
   return true;
 }
 
 std::vector<FusedSeam> SeamFusion::fused() const {
   std::vector<FusedSeam> out;
   for (const Track& t : tracks_) {
-    if (t.n < config_.min_detections) continue;
+    if (t.n < config_.min_detections || t.confident == 0) continue;
     const Eigen::Vector3d axis = t.dir_sum.normalized();
     const Eigen::Vector3d centre = t.mid_sum / t.n;
     // Ends measured along the first axis, placed on the mean line.

@@ -78,8 +78,9 @@ testing::RenderedDepth render(const testing::RenderScene& scene, const hal::Pinh
   return testing::render_depth(scene, K, T_world_cam, o);
 }
 
-std::unique_ptr<GeometricSeamDetector> make_detector(const hal::PinholeIntrinsics& K) {
-  auto d = GeometricSeamDetector::create(GeometricSeamConfig{}, K);
+std::unique_ptr<GeometricSeamDetector> make_detector(const hal::PinholeIntrinsics& K,
+                                                     const GeometricSeamConfig& config = {}) {
+  auto d = GeometricSeamDetector::create(config, K);
   EXPECT_TRUE(d.ok()) << d.status().message();
   return d.ok() ? std::move(d.value()) : nullptr;
 }
@@ -99,6 +100,12 @@ KeyframeView view_of(const testing::RenderedDepth& r, const hal::PinholeIntrinsi
 int count_kind(const DetectionList& out, SeamKind kind) {
   int n = 0;
   for (int i = 0; i < out.size(); ++i) n += out[i].kind == kind ? 1 : 0;
+  return n;
+}
+
+int count_supporting(const DetectionList& out) {
+  int n = 0;
+  for (int i = 0; i < out.size(); ++i) n += out[i].support_only ? 1 : 0;
   return n;
 }
 
@@ -172,6 +179,7 @@ TEST(ButtFinder, GivenAButtAtSeveralYawsAndRangesWithNoiseThenItsSeamIsFoundWith
     EXPECT_EQ(count_kind(out, SeamKind::kFillet), 0) << what;
     const Detection& d = *first_of_kind(out, SeamKind::kButt);
     EXPECT_EQ(d.source, DetectionSource::kGeometry);
+    EXPECT_FALSE(d.support_only) << what;
     EXPECT_EQ(d.keyframe_id, 3);
     EXPECT_EQ(d.t_ns, 456);
     EXPECT_GT(d.confidence, 0.0f);
@@ -217,12 +225,14 @@ TEST(ButtFinder, GivenAButtSeenAlongItsSeamAndNoColourImageThenTheDepthDipFindsI
 }
 
 // One plate (as wide as the butt's two), plain, speckled or scratched and brushed (texture lines
-// along and across it), on the textured bench: raised, but no line crosses it.
+// along and across it), on the textured bench: raised, but no line crosses it. A texture line may
+// reach the supporting bar (it cannot make a seam alone: seam_fusion.hpp), rarely: 1 of these 12
+// views.
 TEST(ButtFinder, GivenASinglePlateOrATexturedPlateOnABenchThenNoButtIsFound) {
   const hal::PinholeIntrinsics K = testing::vga_intrinsics();
   auto detector = make_detector(K);
   ASSERT_NE(detector, nullptr);
-  int raised = 0;
+  int raised = 0, supporting = 0;
   for (const testing::Texture texture :
        {testing::Texture::kPlain, testing::Texture::kSpeckled, testing::Texture::kScratched}) {
     for (uint32_t seed = 1; seed <= 4; ++seed) {
@@ -240,11 +250,14 @@ TEST(ButtFinder, GivenASinglePlateOrATexturedPlateOnABenchThenNoButtIsFound) {
       const testing::RenderedDepth r = render(scene, K, T, seed);
       DetectionList out(8);
       ASSERT_TRUE(detector->detect(view_of(r, K, T), &out).ok());
-      EXPECT_EQ(out.size(), 0) << "texture " << static_cast<int>(texture) << " seed " << seed;
+      EXPECT_EQ(out.size() - count_supporting(out), 0)
+          << "texture " << static_cast<int>(texture) << " seed " << seed;
+      supporting += count_supporting(out);
       raised += detector->last_stats().raised_regions;
     }
   }
   EXPECT_GE(raised, 10);  // the plate was seen as raised (the line search had something to reject)
+  EXPECT_LE(supporting, 2);
 }
 
 // No plates: the bench's edge (a step down to the floor, the top's grooves beside it), a crate on the
@@ -364,6 +377,44 @@ TEST(ButtFinder, GivenBadInputThenClearErrors) {
   GeometricSeamConfig bad_detector;
   bad_detector.butt.min_z = 0.0;
   EXPECT_FALSE(GeometricSeamDetector::create(bad_detector, K).ok());
+  bad = ButtConfig{};
+  bad.support_z = bad.min_z + 1.0;  // above the bar
+  b = ButtFinder::create(bad, DepthNoiseModel{}, K);
+  ASSERT_FALSE(b.ok());
+  EXPECT_NE(b.status().message().find("support_z"), std::string::npos) << b.status().message();
+}
+
+// GIVEN a butt found confidently (bench, 1.5 m)
+// WHEN the bar is raised above its line's significance, with the supporting bar below it or at the
+//      bar
+// THEN the same seam comes out as a supporting detection (Detection::support_only), or not at all.
+TEST(ButtFinder, GivenALineBetweenTheSupportingBarAndTheBarThenItIsASupportingDetection) {
+  const hal::PinholeIntrinsics K = testing::vga_intrinsics();
+  const ButtScene s = bench_with_butt(20 * kDeg);
+  const Eigen::Isometry3d T = bench_camera(1.5);
+  const testing::RenderedDepth r = render(s.scene, K, T);
+  DetectionList out(8);
+  auto detector = make_detector(K);
+  ASSERT_NE(detector, nullptr);
+  ASSERT_TRUE(detector->detect(view_of(r, K, T), &out).ok());
+  ASSERT_EQ(count_kind(out, SeamKind::kButt), 1);
+  const Detection confident = *first_of_kind(out, SeamKind::kButt);
+  ASSERT_FALSE(confident.support_only);
+  GeometricSeamConfig high;
+  high.butt.min_z = 100.0;  // far above any line's significance
+  high.butt.support_z = 3.5;
+  auto supported = make_detector(K, high);
+  ASSERT_NE(supported, nullptr);
+  ASSERT_TRUE(supported->detect(view_of(r, K, T), &out).ok());
+  ASSERT_EQ(count_kind(out, SeamKind::kButt), 1);
+  const Detection& d = *first_of_kind(out, SeamKind::kButt);
+  EXPECT_TRUE(d.support_only);
+  for (int k = 0; k < 2; ++k) EXPECT_LT((d.seam_world[k] - confident.seam_world[k]).norm(), 1e-9);
+  high.butt.support_z = high.butt.min_z;  // no supporting detections
+  auto strict = make_detector(K, high);
+  ASSERT_NE(strict, nullptr);
+  ASSERT_TRUE(strict->detect(view_of(r, K, T), &out).ok());
+  EXPECT_EQ(count_kind(out, SeamKind::kButt), 0);
 }
 
 TEST(ButtFinder, GivenACreatedDetectorThenDetectingAButtWithColourAllocatesNothing) {

@@ -1,5 +1,8 @@
 // Fusion of seam detections over keyframes (detect/seam_fusion.hpp): constructed detections of known
-// seams, some with an end cut by the image border.
+// seams, some with an end cut by the image border, some only supporting.
+
+#include <algorithm>
+#include <cmath>
 
 #include <gtest/gtest.h>
 
@@ -74,6 +77,52 @@ TEST(SeamFusion, GivenASeamWhoseEndNoViewSawThenThatEndIsTheExtentAndUnknown) {
   EXPECT_TRUE(g.add(seen({0, 0, 0}, {0.5, 0, 0})));
   EXPECT_FALSE(g.add(seen({0, 1, 0}, {0.5, 1, 0})));  // no track matched, the table is full
   EXPECT_FALSE(g.add(seen({0, 0, 0}, {0, 0, 0})));    // no length
+}
+
+Detection supporting(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+  Detection d = seen(a, b);
+  d.support_only = true;
+  return d;
+}
+
+// GIVEN supporting detections (below the detector's bar) of two seams, and one confident detection of
+//       the first, after them
+// WHEN fused
+// THEN the first seam is reported with every detection (the supporting ones too), the second, only
+//      ever supported, is not, however often it was seen.
+TEST(SeamFusion, GivenSupportingDetectionsThenOnlyASeamAConfidentDetectionFoundIsReported) {
+  SeamFusion f;
+  for (int i = 0; i < 5; ++i) {
+    EXPECT_TRUE(f.add(supporting({0.001 * i, 0, 0}, {0.6, 0.001 * i, 0})));
+    EXPECT_TRUE(f.add(supporting({0, 1, 0}, {0.6, 1, 0})));
+  }
+  EXPECT_EQ(f.tracks(), 2);
+  EXPECT_TRUE(f.fused().empty());
+  EXPECT_TRUE(f.add(seen({0, 0.001, 0}, {0.6, 0, 0})));
+  const std::vector<FusedSeam> fused = f.fused();
+  ASSERT_EQ(fused.size(), 1u);
+  EXPECT_EQ(fused[0].detections, 6);
+  EXPECT_NEAR(std::max(fused[0].seam.a.y(), fused[0].seam.b.y()), 0.0, 0.005);
+}
+
+// GIVEN a table of two tracks, one confirmed, one only supported
+// WHEN a detection of a third seam comes
+// THEN it replaces the only-supported track (the table stays bounded) and the confirmed one stays;
+//      once both are confirmed, a new seam finds no room.
+TEST(SeamFusion, GivenAFullTableThenAnOnlySupportedTrackMakesRoomAndConfirmedOnesStay) {
+  SeamFusionConfig c;
+  c.max_tracks = 2;
+  SeamFusion f(c);
+  EXPECT_TRUE(f.add(seen({0, 0, 0}, {0.6, 0, 0})));
+  EXPECT_TRUE(f.add(seen({0, 0, 0}, {0.6, 0, 0})));
+  EXPECT_TRUE(f.add(supporting({0, 1, 0}, {0.6, 1, 0})));
+  EXPECT_TRUE(f.add(seen({0, 2, 0}, {0.6, 2, 0})));  // replaces the track at y = 1
+  EXPECT_EQ(f.tracks(), 2);
+  EXPECT_TRUE(f.add(seen({0, 2, 0}, {0.6, 2, 0})));
+  const std::vector<FusedSeam> fused = f.fused();
+  ASSERT_EQ(fused.size(), 2u);
+  for (const FusedSeam& s : fused) EXPECT_NEAR(std::fabs(s.seam.a.y() - 1.0), 1.0, 1e-9);  // y 0 and 2
+  EXPECT_FALSE(f.add(supporting({0, 3, 0}, {0.6, 3, 0})));  // both confirmed: no room
 }
 
 }  // namespace

@@ -217,7 +217,7 @@ TEST(Scenario, GivenBaseLabAndOverridesWhenParsedThenOnlyTheOverriddenFieldsChan
       "  stereo: {enabled: true}\n"
       "imu:\n"
       "  noise: {enabled: false}\n"
-      "render: {area_sampling: true}\n"
+      "render: {area_sampling: true, shadows: true, ambient_occlusion_rays: 12}\n"
       "scene:\n"
       "  boxes:\n"
       "    - name: only_box\n"
@@ -240,9 +240,17 @@ TEST(Scenario, GivenBaseLabAndOverridesWhenParsedThenOnlyTheOverriddenFieldsChan
   EXPECT_EQ(s->imu.noise.gyro_noise_density, lab.imu.noise.gyro_noise_density);
   EXPECT_TRUE(s->render.area_sampling);
   EXPECT_FALSE(lab.render.area_sampling);
+  EXPECT_TRUE(s->render.shadows);
+  EXPECT_EQ(s->render.ambient_occlusion_rays, 12);
+  EXPECT_FALSE(lab.render.shadows);
+  EXPECT_EQ(lab.render.ambient_occlusion_rays, 0);
   auto again = parse_scenario_yaml(scenario_to_yaml(s.value()), "lab-fast-resolved.yaml");
   ASSERT_TRUE(again.ok()) << again.status().to_string();
   EXPECT_TRUE(again->render.area_sampling);
+  EXPECT_TRUE(again->render.shadows);
+  EXPECT_EQ(again->render.shadow_range_m, lab.render.shadow_range_m);
+  EXPECT_EQ(again->render.ambient_occlusion_rays, 12);
+  EXPECT_EQ(again->render.ambient_occlusion_range_m, lab.render.ambient_occlusion_range_m);
   EXPECT_EQ(s->render.ambient, lab.render.ambient);
   ASSERT_EQ(s->scene.boxes.size(), 1u);  // lists replace
   EXPECT_EQ(s->scene.boxes[0].material, Material::kWood);
@@ -281,9 +289,18 @@ TEST(Scenario, GivenUnknownKeysOrWrongTypesWhenParsedThenErrorNamesFileLineAndDo
     EXPECT_NE(m.find(c.expect_key), std::string::npos) << m;
   }
   // Range errors beyond types name the field.
-  auto s = parse_scenario_yaml("base: lab\ncamera:\n  rate_hz: 0\n", "bad.yaml");
-  ASSERT_FALSE(s.ok());
-  EXPECT_NE(s.status().message().find("camera.rate_hz"), std::string::npos) << s.status().message();
+  const std::pair<const char*, const char*> range_cases[] = {
+      {"base: lab\ncamera:\n  rate_hz: 0\n", "camera.rate_hz"},
+      {"base: lab\nrender: {ambient_occlusion_rays: 65}\n", "render.ambient_occlusion_rays"},
+      {"base: lab\nrender: {ambient_occlusion_rays: 8, ambient_occlusion_range_m: 0}\n",
+       "render.ambient_occlusion_range_m"},
+      {"base: lab\nrender: {shadows: true, shadow_range_m: -1}\n", "render.shadow_range_m"},
+  };
+  for (const auto& [yaml, key] : range_cases) {
+    auto s = parse_scenario_yaml(yaml, "bad.yaml");
+    ASSERT_FALSE(s.ok()) << yaml;
+    EXPECT_NE(s.status().message().find(key), std::string::npos) << s.status().message();
+  }
 }
 
 TEST(Scenario, GivenNamesAndFilesWhenLoadedThenPresetsFilesAndErrorsAreTellApart) {

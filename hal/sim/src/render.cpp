@@ -1,5 +1,7 @@
 // Embree renderer: one static triangle mesh (RTC_BUILD_QUALITY_HIGH), primary rays traced in
-// coherent packets over 4x4 / 4x2 / 2x2 pixel tiles, textured Lambertian shading.
+// coherent packets over 4x4 / 4x2 / 2x2 pixel tiles, textured Lambertian shading; optionally a
+// shadow ray per hit towards the directional light and ambient-occlusion rays over the hit's
+// hemisphere, traced in packets of the same width (RenderOptions::shadows, ambient_occlusion_rays).
 //
 // Ray of pixel (u, v): d_cam = K^-1 [u v 1]^T = ((u - cx) / fx, (v - cy) / fy, 1). Because
 // d_cam.z = 1, the hit parameter t along d is directly the z-depth of the hit in the camera frame.
@@ -68,7 +70,12 @@ struct ShadeContext {
   float org[3];
   float light[3];  // unit vector towards the light
   float ambient, diffuse;
-  float inv_f2;  // (pixel footprint at unit depth)^2
+  bool shadows;                                  // RenderOptions::shadows (with a positive range)
+  float shadow_range;                            // RenderOptions::shadow_range_m
+  int ao_rays;                                   // RenderOptions::ambient_occlusion_rays (0: off)
+  float ao_range;                                // RenderOptions::ambient_occlusion_range_m
+  std::array<std::array<float, 3>, 64> ao_dirs;  // the first ao_rays: ao_directions()
+  float inv_f2;                                  // (pixel footprint at unit depth)^2
   float min_depth, max_depth;
   uint8_t background[3];
 };
@@ -88,12 +95,154 @@ inline void intersect(const int* valid, RTCScene scene, RTCIntersectContext* ctx
 inline void intersect(const int* valid, RTCScene scene, RTCIntersectContext* ctx, RTCRayHit16* rh) {
   rtcIntersect16(valid, scene, ctx, rh);
 }
+inline void occluded(const int* valid, RTCScene scene, RTCIntersectContext* ctx, RTCRay4* r) {
+  rtcOccluded4(valid, scene, ctx, r);
+}
+inline void occluded(const int* valid, RTCScene scene, RTCIntersectContext* ctx, RTCRay8* r) {
+  rtcOccluded8(valid, scene, ctx, r);
+}
+inline void occluded(const int* valid, RTCScene scene, RTCIntersectContext* ctx, RTCRay16* r) {
+  rtcOccluded16(valid, scene, ctx, r);
+}
+// One ray in the packets' layout, traced with rtcOccluded1 (the scalar path: no packet support needed).
+struct Ray1 {
+  float org_x[1], org_y[1], org_z[1], tnear[1], dir_x[1], dir_y[1], dir_z[1], time[1], tfar[1];
+  unsigned mask[1], id[1], flags[1];
+};
+inline void occluded(const int* valid, RTCScene scene, RTCIntersectContext* ctx, Ray1* r) {
+  if (!valid[0]) return;
+  RTCRay ray;
+  ray.org_x = r->org_x[0], ray.org_y = r->org_y[0], ray.org_z = r->org_z[0];
+  ray.dir_x = r->dir_x[0], ray.dir_y = r->dir_y[0], ray.dir_z = r->dir_z[0];
+  ray.tnear = r->tnear[0];
+  ray.tfar = r->tfar[0];
+  ray.time = r->time[0];
+  ray.mask = r->mask[0];
+  ray.id = r->id[0];
+  ray.flags = r->flags[0];
+  rtcOccluded1(scene, ctx, &ray);
+  r->tfar[0] = ray.tfar;
+}
+
+// Ambient-occlusion directions in a hit's tangent frame (b1, b2, n): cosine-weighted, stratified in
+// cos^2(polar angle) and spread in azimuth by the golden angle (the same for every hit: a noise-free
+// estimate of how much of the sky the point sees, cosine weighted as a Lambertian surface takes it).
+std::array<std::array<float, 3>, 64> ao_directions(int rays) {
+  std::array<std::array<float, 3>, 64> d{};
+  for (int j = 0; j < rays; ++j) {
+    const double u = (j + 0.5) / rays, phi = 2.399963229728653 * j;  // golden angle
+    const double r = std::sqrt(u);
+    d[static_cast<size_t>(j)] = {static_cast<float>(r * std::cos(phi)), static_cast<float>(r * std::sin(phi)),
+                                 static_cast<float>(std::sqrt(1.0 - u))};
+  }
+  return d;
+}
+
+// How the light reaches the hits of one packet of N lanes (hit[i]: lane i hit a triangle; t, prim and
+// the scene-frame ray direction d as the primary rays'): lit[i] = 0 where a shadow ray towards the
+// light meets a surface within shadow_range (else 1), open[i] = the share of the ambient-occlusion
+// rays that meet none within ao_range (else 1). The rays start at the hit, lifted 0.1 mm off the
+// surface on the camera's side (the side that is shaded), and use the triangle's normal (a pipe's
+// smooth shading normal differs by less than its facets' angle; near a pipe's terminator a facet
+// may skip the shadow test). RayN: an Embree ray packet of >= N lanes, or Ray1.
+template <int N, class RayN>
+void light_visibility(const ShadeContext& c, RTCScene scene, const bool* hit, const float* t,
+                      const unsigned* prim, const float* dx, const float* dy, const float* dz, float* lit,
+                      float* open) {
+  constexpr float kLiftM = 1e-4f;
+  static_assert(N <= static_cast<int>(sizeof(RayN::tfar) / sizeof(float)), "packet too narrow");
+  constexpr int kLanes = static_cast<int>(sizeof(RayN::tfar) / sizeof(float));
+  RTCIntersectContext ctx;
+  rtcInitIntersectContext(&ctx);
+  alignas(64) RayN ray;
+  alignas(64) int valid[kLanes];
+  float n_side[N][3] = {}, org[N][3] = {};
+  for (int i = 0; i < kLanes; ++i) {
+    valid[i] = 0;
+    ray.org_x[i] = ray.org_y[i] = ray.org_z[i] = 0.0f;
+    ray.dir_x[i] = ray.dir_y[i] = ray.dir_z[i] = 0.0f;
+    ray.tfar[i] = 0.0f;
+    ray.tnear[i] = 0.0f;
+    ray.time[i] = 0.0f;
+    ray.mask[i] = ~0u;
+    ray.id[i] = static_cast<unsigned>(i);
+    ray.flags[i] = 0;
+  }
+  for (int i = 0; i < N; ++i) {
+    lit[i] = 1.0f;
+    open[i] = 1.0f;
+    if (!hit[i]) continue;
+    const TriShade& s = c.tris[prim[i]];
+    const float facing = s.n[0] * dx[i] + s.n[1] * dy[i] + s.n[2] * dz[i] > 0.0f ? -1.0f : 1.0f;
+    for (int k = 0; k < 3; ++k) n_side[i][k] = facing * s.n[k];
+    org[i][0] = c.org[0] + t[i] * dx[i] + kLiftM * n_side[i][0];
+    org[i][1] = c.org[1] + t[i] * dy[i] + kLiftM * n_side[i][1];
+    org[i][2] = c.org[2] + t[i] * dz[i] + kLiftM * n_side[i][2];
+  }
+  auto trace = [&](auto direction, float range, auto on_blocked) {
+    bool any = false;
+    for (int i = 0; i < kLanes; ++i) {
+      float dir[3] = {0.0f, 0.0f, 0.0f};
+      valid[i] = i < N && hit[i] && direction(i, dir) ? -1 : 0;
+      any = any || valid[i] != 0;
+      if (!valid[i]) continue;
+      ray.org_x[i] = org[i][0];
+      ray.org_y[i] = org[i][1];
+      ray.org_z[i] = org[i][2];
+      ray.dir_x[i] = dir[0];
+      ray.dir_y[i] = dir[1];
+      ray.dir_z[i] = dir[2];
+      ray.tfar[i] = range;
+    }
+    if (!any) return;
+    occluded(valid, scene, &ctx, &ray);
+    for (int i = 0; i < N; ++i)
+      if (valid[i] && ray.tfar[i] < 0.0f) on_blocked(i);  // Embree sets an occluded ray's tfar to -inf
+  };
+  if (c.shadows) {
+    // Only a side facing the light has direct light to lose (n . l <= 0 is shaded ambient only).
+    trace(
+        [&](int i, float* dir) {
+          for (int k = 0; k < 3; ++k) dir[k] = c.light[k];
+          return n_side[i][0] * c.light[0] + n_side[i][1] * c.light[1] + n_side[i][2] * c.light[2] > 0.0f;
+        },
+        c.shadow_range, [&](int i) { lit[i] = 0.0f; });
+  }
+  if (c.ao_rays > 0) {
+    float b1[N][3] = {}, b2[N][3] = {};
+    for (int i = 0; i < N; ++i) {
+      if (!hit[i]) continue;
+      const float* n = n_side[i];
+      // b1 = normalize(a x n) with a = x, or y where n is near x; b2 = n x b1.
+      const float a[3] = {std::fabs(n[0]) < 0.9f ? 1.0f : 0.0f, std::fabs(n[0]) < 0.9f ? 0.0f : 1.0f, 0.0f};
+      float x[3] = {a[1] * n[2] - a[2] * n[1], a[2] * n[0] - a[0] * n[2], a[0] * n[1] - a[1] * n[0]};
+      const float inv = 1.0f / std::sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2]);
+      for (int k = 0; k < 3; ++k) b1[i][k] = x[k] * inv;
+      b2[i][0] = n[1] * b1[i][2] - n[2] * b1[i][1];
+      b2[i][1] = n[2] * b1[i][0] - n[0] * b1[i][2];
+      b2[i][2] = n[0] * b1[i][1] - n[1] * b1[i][0];
+    }
+    int blocked[N] = {};
+    for (int j = 0; j < c.ao_rays; ++j) {
+      const auto& l = c.ao_dirs[static_cast<size_t>(j)];
+      trace(
+          [&](int i, float* dir) {
+            for (int k = 0; k < 3; ++k) dir[k] = l[0] * b1[i][k] + l[1] * b2[i][k] + l[2] * n_side[i][k];
+            return true;
+          },
+          c.ao_range, [&](int i) { ++blocked[i]; });
+    }
+    for (int i = 0; i < N; ++i)
+      if (hit[i]) open[i] = 1.0f - static_cast<float>(blocked[i]) / static_cast<float>(c.ao_rays);
+  }
+}
 
 // Shades one hit: t is the z-depth, (dx, dy, dz) the scene-frame ray direction (d_cam.z = 1) with
-// squared length d2.
+// squared length d2; lit is 1, or 0 where the hit is in shadow (the diffuse term is dropped); open
+// scales the ambient term (the share of the sky the point sees, light_visibility()).
 template <bool kDepth>
 HWR_FORCE_INLINE void shade_hit(const ShadeContext& c, float t, uint32_t prim, float dx, float dy, float dz,
-                                float d2, uint8_t* bgr, float* depth) {
+                                float d2, float lit, float open, uint8_t* bgr, float* depth) {
   const TriShade& s = c.tris[prim];
   const float px = c.org[0] + t * dx, py = c.org[1] + t * dy, pz = c.org[2] + t * dz;
   float nx = s.n[0], ny = s.n[1], nz = s.n[2];
@@ -131,7 +280,10 @@ HWR_FORCE_INLINE void shade_hit(const ShadeContext& c, float t, uint32_t prim, f
 
   // Lambert: ambient + diffuse * max(0, n . l), applied to the texel in fixed point.
   const float n_dot_l = facing * (nx * c.light[0] + ny * c.light[1] + nz * c.light[2]);
-  const float k = c.ambient + c.diffuse * std::max(n_dot_l, 0.0f);
+  // Without shadows and occlusion the expression of old: a compiler that fuses multiply-adds (aarch64)
+  // would round the longer one differently even with lit = open = 1.
+  const float k = c.shadows || c.ao_rays > 0 ? c.ambient * open + c.diffuse * lit * std::max(n_dot_l, 0.0f)
+                                             : c.ambient + c.diffuse * std::max(n_dot_l, 0.0f);
   detail::sample_shaded(tex, level, u, v, static_cast<uint32_t>(k * 65535.0f + 0.5f), bgr);
   if constexpr (kDepth) *depth = (t >= c.min_depth && t <= c.max_depth) ? t : 0.0f;
 }
@@ -142,7 +294,7 @@ HWR_FORCE_INLINE void shade_hit(const ShadeContext& c, float t, uint32_t prim, f
 template <bool kDepth>
 HWR_FORCE_INLINE void shade4(const ShadeContext& c, const TriShade* const* s, const float* t_in,
                              const float* dx_in, const float* dy_in, const float* dz_in, const float* d2_in,
-                             uint8_t* const* bgr, float* const* depth) {
+                             const float* lit, const float* open, uint8_t* const* bgr, float* const* depth) {
   const bool same = s[0] == s[1] && s[0] == s[2] && s[0] == s[3];  // the usual case inside a tile
   auto gather = [&](auto field) {
     return same ? _mm_set1_ps(field(*s[0]))
@@ -190,8 +342,9 @@ HWR_FORCE_INLINE void shade4(const ShadeContext& c, const TriShade* const* s, co
       _mm_add_ps(_mm_add_ps(_mm_mul_ps(nx, _mm_set1_ps(c.light[0])), _mm_mul_ps(ny, _mm_set1_ps(c.light[1]))),
                  _mm_mul_ps(nz, _mm_set1_ps(c.light[2]))),
       flip);
-  const __m128 k = _mm_add_ps(_mm_set1_ps(c.ambient),
-                              _mm_mul_ps(_mm_set1_ps(c.diffuse), _mm_max_ps(n_dot_l, _mm_setzero_ps())));
+  const __m128 k = _mm_add_ps(_mm_mul_ps(_mm_set1_ps(c.ambient), _mm_loadu_ps(open)),
+                              _mm_mul_ps(_mm_mul_ps(_mm_set1_ps(c.diffuse), _mm_loadu_ps(lit)),
+                                         _mm_max_ps(n_dot_l, _mm_setzero_ps())));
   alignas(16) int32_t k16[4];
   _mm_store_si128(reinterpret_cast<__m128i*>(k16),
                   _mm_cvttps_epi32(_mm_add_ps(_mm_mul_ps(k, _mm_set1_ps(65535.0f)), _mm_set1_ps(0.5f))));
@@ -405,6 +558,16 @@ void EmbreeRenderer::render_packets(const ShadeContext& c, const Eigen::Matrix3f
         d2[i] = xn * xn + yn * yn + 1.0f;
       }
       intersect(valid, scene_, &ctx, &rh);
+      alignas(16) float lit[N], open[N];
+      if (c.shadows || c.ao_rays > 0) {
+        bool hit[N];
+        for (int i = 0; i < N; ++i) hit[i] = valid[i] && rh.hit.geomID[i] != RTC_INVALID_GEOMETRY_ID;
+        light_visibility<N, decltype(RayHitN::ray)>(c, scene_, hit, rh.ray.tfar, rh.hit.primID, rh.ray.dir_x,
+                                                    rh.ray.dir_y, rh.ray.dir_z, lit, open);
+      } else {
+        std::fill(lit, lit + N, 1.0f);
+        std::fill(open, open + N, 1.0f);
+      }
       uint8_t* bgr_rows[TH];
       float* depth_rows[TH];
       for (int r = 0; r < TH; ++r) {
@@ -430,7 +593,7 @@ void EmbreeRenderer::render_packets(const ShadeContext& c, const Eigen::Matrix3f
 #if defined(__SSE2__)
         if (flat_hits) {
           shade4<kDepth>(c, s, &rh.ray.tfar[g], &rh.ray.dir_x[g], &rh.ray.dir_y[g], &rh.ray.dir_z[g], &d2[g],
-                         out, z);
+                         &lit[g], &open[g], out, z);
           continue;
         }
 #endif
@@ -439,7 +602,7 @@ void EmbreeRenderer::render_packets(const ShadeContext& c, const Eigen::Matrix3f
           if (!valid[i]) continue;
           if (s[k]) {
             shade_hit<kDepth>(c, rh.ray.tfar[i], rh.hit.primID[i], rh.ray.dir_x[i], rh.ray.dir_y[i],
-                              rh.ray.dir_z[i], d2[i], out[k], z[k]);
+                              rh.ray.dir_z[i], d2[i], lit[i], open[i], out[k], z[k]);
           } else {
             out[k][0] = c.background[0], out[k][1] = c.background[1], out[k][2] = c.background[2];
             if constexpr (kDepth) *z[k] = 0.0f;
@@ -482,8 +645,14 @@ void EmbreeRenderer::render_single(const ShadeContext& c, const Eigen::Matrix3f&
       rtcIntersect1(scene_, &ctx, &rh);
       float* zp = kDepth ? z + px : nullptr;
       if (rh.hit.geomID != RTC_INVALID_GEOMETRY_ID) {
+        float lit = 1.0f, open = 1.0f;
+        if (c.shadows || c.ao_rays > 0) {
+          const bool hit = true;
+          light_visibility<1, Ray1>(c, scene_, &hit, &rh.ray.tfar, &rh.hit.primID, &rh.ray.dir_x,
+                                    &rh.ray.dir_y, &rh.ray.dir_z, &lit, &open);
+        }
         shade_hit<kDepth>(c, rh.ray.tfar, rh.hit.primID, rh.ray.dir_x, rh.ray.dir_y, rh.ray.dir_z,
-                          xn * xn + yn * yn + 1.0f, out, zp);
+                          xn * xn + yn * yn + 1.0f, lit, open, out, zp);
       } else {
         out[0] = c.background[0], out[1] = c.background[1], out[2] = c.background[2];
         if constexpr (kDepth) *zp = 0.0f;
@@ -513,6 +682,11 @@ void EmbreeRenderer::render(const Eigen::Isometry3d& T_scene_cam, const hal::Pin
   for (int k = 0; k < 3; ++k) c.light[k] = static_cast<float>(light[k]);
   c.ambient = static_cast<float>(std::clamp(options.ambient, 0.0, 1.0));
   c.diffuse = 1.0f - c.ambient;
+  c.shadows = options.shadows && options.shadow_range_m > 0.0;
+  c.shadow_range = static_cast<float>(options.shadow_range_m);
+  c.ao_rays = options.ambient_occlusion_range_m > 0.0 ? std::clamp(options.ambient_occlusion_rays, 0, 64) : 0;
+  c.ao_range = static_cast<float>(options.ambient_occlusion_range_m);
+  c.ao_dirs = ao_directions(c.ao_rays);
   c.inv_f2 = static_cast<float>(1.0 / (intrinsics.fx * intrinsics.fy));
   c.min_depth = static_cast<float>(options.min_range_m);
   c.max_depth = static_cast<float>(options.max_range_m);

@@ -513,6 +513,15 @@ core::Status validate_scenario(const ScenarioSpec& s) {
       s.render.min_range_m >= s.render.max_range_m) {
     return bad("render.min_range_m/max_range_m", "need 0 <= min < max");
   }
+  if (s.render.shadows && !positive(s.render.shadow_range_m)) {
+    return bad("render.shadow_range_m", "must be > 0 when render.shadows is on");
+  }
+  if (s.render.ambient_occlusion_rays < 0 || s.render.ambient_occlusion_rays > 64) {
+    return bad("render.ambient_occlusion_rays", "must be in [0, 64]");
+  }
+  if (s.render.ambient_occlusion_rays > 0 && !positive(s.render.ambient_occlusion_range_m)) {
+    return bad("render.ambient_occlusion_range_m", "must be > 0 when render.ambient_occlusion_rays is set");
+  }
   if (!positive(s.exposure.gain)) return bad("exposure.gain", "must be > 0");
   for (const ExposureEvent& e : s.exposure_events) {
     if (!positive(e.gain) || !std::isfinite(e.time_s))

@@ -203,6 +203,9 @@ void read_render(ConfigMap m, RenderOptions* r) {
   m.get("max_range_m", &r->max_range_m).get("min_range_m", &r->min_range_m);
   m.get("light_dir_scene", &r->light_dir_scene).get("ambient", &r->ambient);
   m.get("area_sampling", &r->area_sampling);
+  m.get("shadows", &r->shadows).get("shadow_range_m", &r->shadow_range_m);
+  m.get("ambient_occlusion_rays", &r->ambient_occlusion_rays);
+  m.get("ambient_occlusion_range_m", &r->ambient_occlusion_range_m);
 }
 
 void read_imu(ConfigMap m, ImuSpec* s) {
@@ -469,6 +472,10 @@ std::string scenario_to_yaml(const ScenarioSpec& s) {
   e.kv(2, "light_dir_scene", vec(s.render.light_dir_scene));
   e.kv(2, "ambient", num(s.render.ambient));
   e.kv(2, "area_sampling", boolean(s.render.area_sampling));
+  e.kv(2, "shadows", boolean(s.render.shadows));
+  e.kv(2, "shadow_range_m", num(s.render.shadow_range_m));
+  e.kv(2, "ambient_occlusion_rays", std::to_string(s.render.ambient_occlusion_rays));
+  e.kv(2, "ambient_occlusion_range_m", num(s.render.ambient_occlusion_range_m));
 
   const ImuNoiseSpec& n = s.imu.noise;
   e.map(0, "imu");

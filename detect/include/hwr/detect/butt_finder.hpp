@@ -25,10 +25,13 @@
 //    against the noise model: sigma(z) sqrt(1 / n_line + 1 / (4 n_left) + 1 / (4 n_right)).
 // Each cue's significance is the sum of its parts' z over sqrt(parts), leaving out the largest part
 // (a texture blob or stroke is dark in one part only) and needing at least three parts with pixels,
-// all but one of them at min_segment_z or more. The line's significance is the larger of the two; the
-// most significant line at least min_plate_width_m inside the region on both sides is the seam when it
-// reaches min_z. A single plate's outer edge (a step down to the support), the bench's edge and box
-// edges lie outside any region or at its border; texture strokes are short, curved or one-sided.
+// all but one of them at min_segment_z or more. The line's significance is the largest of the two and,
+// where both are measured, their Stouffer sum (z_dark + z_depth) / sqrt(2) (their noises are
+// independent: the texture, the stereo noise); the most significant line at least min_plate_width_m
+// inside the region on both sides is the seam when it reaches min_z, and a supporting detection
+// (Detection::support_only) when it reaches support_z only. A single plate's outer edge (a step down to the
+// support), the bench's edge and box edges lie outside any region or at its border; texture strokes are
+// short, curved or one-sided.
 //
 // The seam lies on the plate-top plane (the gap's centre line on the top faces). Its ends are the
 // plates' ends: per side of the seam, the depth image's pixels in a band beside it (end_band_near_m to
@@ -71,6 +74,7 @@ struct ButtConfig {
   double dark_offset_px = 2.0;
   double min_plate_width_m = 0.1;  // the seam lies this far inside the region on both sides
   double min_z = 5.0;
+  double support_z = 3.5;              // in (0, min_z]; min_z: no supporting detections
   double max_depth_residual_m = 0.05;  // a pixel's residual is clipped to this (holes, mixed pixels)
   double min_length_m = 0.2, max_length_m = 2.0;
   double end_band_near_m = 0.01, end_band_far_m = 0.08;

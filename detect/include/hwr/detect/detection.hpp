@@ -27,6 +27,10 @@ struct Detection {
   DetectionSource source = DetectionSource::kGeometry;
   SeamKind kind = SeamKind::kFillet;
   float confidence = 0.0f;  // [0, 1]
+  // Evidence below the detector's own bar (butt_finder.hpp: support_z <= z < min_z): not a welding
+  // region by itself, it only supports a seam that a confident detection of another keyframe found
+  // (seam_fusion.hpp; hysteresis, as Canny's weak edges join only where a strong one leads).
+  bool support_only = false;
   int32_t keyframe_id = -1;
   int64_t t_ns = 0;
   cv::Rect2f box_px;  // the 3D box's corners projected, clipped to the image

@@ -5,7 +5,9 @@
 // plates lying raised on a horizontal support (raised_regions.hpp) are searched for a butt joint's gap
 // line in the colour image and the depth (butt_finder.hpp; depth only without a colour image).
 // Detections of one seam found twice (a plate split into two planes) are merged, the most confident
-// max_detections kept, and each is placed in the world with the keyframe's pose. Sized at create();
+// max_detections kept, and each is placed in the world with the keyframe's pose. A butt line below the
+// bar but above ButtConfig::support_z is a supporting detection (Detection::support_only): not a
+// welding region, it goes to the fusion over keyframes only (seam_fusion.hpp). Sized at create();
 // detect() allocates nothing.
 
 #include <memory>

@@ -30,9 +30,25 @@ struct RenderOptions {
   // covers a centre, fully dark or not at all: a 2 mm butt gap seen from 1.5-2.5 m at 20-35 deg down
   // is 0.3-0.5 px across); true
   // averages the centre and four rotated-grid samples at (+-1/8, -+3/8) px and (+-3/8, +-1/8) px, a
-  // box filter over the pixel (5 rays a pixel: about 4.5x the render time, hwr-bench sim-render
+  // box filter over the pixel (5 rays a pixel: about 5x the render time, hwr-bench sim-render
   // --area-sampling). Depth is the centre ray's either way.
   bool area_sampling = false;
+  // Shadows of the directional light: a surface point from which a ray towards the light meets
+  // another surface within shadow_range_m gets the ambient term only (a shadow ray per lit hit,
+  // about 1.4x the render time, hwr-bench sim-render --shadows). The range stands in for lamps
+  // hanging under a ceiling: the room's ceiling and far walls (beyond it) cast none, nearby work
+  // pieces do, and so does a plate over the root gap of a butt joint, whose bottom and walls a real
+  // lamp barely lights. False: every surface facing the light is lit (no shadows at all).
+  bool shadows = false;
+  double shadow_range_m = 2.0;
+  // Ambient occlusion: the ambient term of a surface point scaled by the share of this many fixed,
+  // cosine-weighted directions over its surface that meet no other surface within
+  // ambient_occlusion_range_m (0: off, up to 64). Nooks and narrow gaps get less of the room's
+  // diffuse light: the bottom of a 2 mm root gap between 8 mm plates sees an eighth of the sky
+  // (sin(atan(1 / 8)), cosine weighted).
+  // Each direction is one more ray per hit (hwr-bench sim-render --ambient-occlusion N).
+  int ambient_occlusion_rays = 0;
+  double ambient_occlusion_range_m = 0.05;
   // Colour of pixels whose ray hits nothing (outdoor sky).
   Eigen::Vector3d background_bgr{200.0, 180.0, 160.0};
 };
