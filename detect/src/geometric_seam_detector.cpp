@@ -93,26 +93,26 @@ core::Status GeometricSeamDetector::detect(const KeyframeView& view, DetectionLi
   stats_.raised_regions = raised_.find(cloud_, planes_, up_cam);
   stats_.candidates += butts_.find(cloud_, raised_, bgr, *view.depth_m, &candidates_);
   candidates_.keep_most_confident(candidates_.capacity());
-  // Confident detections first, then supporting ones: a supporting line never displaces a confident
-  // one (as a duplicate or past max_detections), whatever their confidences.
-  for (int k = 0; k < 2 * candidates_.size(); ++k) {
-    const int i = k % candidates_.size();
-    if (candidates_[i].support_only != (k >= candidates_.size())) continue;
-    bool duplicate = false;
-    for (int j = 0; j < out->size() && !duplicate; ++j) {
-      duplicate =
-          same_seam((*out)[j], candidates_[i], config_.duplicate_angle_rad, config_.duplicate_distance_m);
+  // Places a candidate unless it repeats one placed already; false once the list is full.
+  auto place = [&](const Detection& candidate) {
+    for (int j = 0; j < out->size(); ++j) {
+      if (same_seam((*out)[j], candidate, config_.duplicate_angle_rad, config_.duplicate_distance_m)) {
+        ++stats_.duplicates;
+        return true;
+      }
     }
-    if (duplicate) {
-      ++stats_.duplicates;
-      continue;
-    }
-    Detection d = candidates_[i];
+    Detection d = candidate;
     d.keyframe_id = view.keyframe_id;
     d.t_ns = view.t_ns;
     place_in_world(view.T_world_cam, &d);
-    if (!out->push(d)) break;
-    if (out->size() >= config_.max_detections) break;
+    return out->push(d) && out->size() < config_.max_detections;
+  };
+  // Confident detections first, then supporting ones: a supporting line never displaces a confident
+  // one (as a duplicate or past max_detections), whatever their confidences.
+  for (const bool supporting : {false, true}) {
+    for (int i = 0; i < candidates_.size(); ++i) {
+      if (candidates_[i].support_only == supporting && !place(candidates_[i])) return core::Status();
+    }
   }
   return core::Status();
 }

@@ -71,6 +71,7 @@ struct ShadeContext {
   float light[3];  // unit vector towards the light
   float ambient, diffuse;
   bool shadows;                                  // RenderOptions::shadows (with a positive range)
+  bool light_rays;                               // shadows or ao_rays: light_visibility() runs
   float shadow_range;                            // RenderOptions::shadow_range_m
   int ao_rays;                                   // RenderOptions::ambient_occlusion_rays (0: off)
   float ao_range;                                // RenderOptions::ambient_occlusion_range_m
@@ -282,8 +283,8 @@ HWR_FORCE_INLINE void shade_hit(const ShadeContext& c, float t, uint32_t prim, f
   const float n_dot_l = facing * (nx * c.light[0] + ny * c.light[1] + nz * c.light[2]);
   // Without shadows and occlusion the expression of old: a compiler that fuses multiply-adds (aarch64)
   // would round the longer one differently even with lit = open = 1.
-  const float k = c.shadows || c.ao_rays > 0 ? c.ambient * open + c.diffuse * lit * std::max(n_dot_l, 0.0f)
-                                             : c.ambient + c.diffuse * std::max(n_dot_l, 0.0f);
+  const float k = c.light_rays ? c.ambient * open + c.diffuse * lit * std::max(n_dot_l, 0.0f)
+                               : c.ambient + c.diffuse * std::max(n_dot_l, 0.0f);
   detail::sample_shaded(tex, level, u, v, static_cast<uint32_t>(k * 65535.0f + 0.5f), bgr);
   if constexpr (kDepth) *depth = (t >= c.min_depth && t <= c.max_depth) ? t : 0.0f;
 }
@@ -559,7 +560,7 @@ void EmbreeRenderer::render_packets(const ShadeContext& c, const Eigen::Matrix3f
       }
       intersect(valid, scene_, &ctx, &rh);
       alignas(16) float lit[N], open[N];
-      if (c.shadows || c.ao_rays > 0) {
+      if (c.light_rays) {
         bool hit[N];
         for (int i = 0; i < N; ++i) hit[i] = valid[i] && rh.hit.geomID[i] != RTC_INVALID_GEOMETRY_ID;
         light_visibility<N, decltype(RayHitN::ray)>(c, scene_, hit, rh.ray.tfar, rh.hit.primID, rh.ray.dir_x,
@@ -646,7 +647,7 @@ void EmbreeRenderer::render_single(const ShadeContext& c, const Eigen::Matrix3f&
       float* zp = kDepth ? z + px : nullptr;
       if (rh.hit.geomID != RTC_INVALID_GEOMETRY_ID) {
         float lit = 1.0f, open = 1.0f;
-        if (c.shadows || c.ao_rays > 0) {
+        if (c.light_rays) {
           const bool hit = true;
           light_visibility<1, Ray1>(c, scene_, &hit, &rh.ray.tfar, &rh.hit.primID, &rh.ray.dir_x,
                                     &rh.ray.dir_y, &rh.ray.dir_z, &lit, &open);
@@ -687,6 +688,7 @@ void EmbreeRenderer::render(const Eigen::Isometry3d& T_scene_cam, const hal::Pin
   c.ao_rays = options.ambient_occlusion_range_m > 0.0 ? std::clamp(options.ambient_occlusion_rays, 0, 64) : 0;
   c.ao_range = static_cast<float>(options.ambient_occlusion_range_m);
   c.ao_dirs = ao_directions(c.ao_rays);
+  c.light_rays = c.shadows || c.ao_rays > 0;
   c.inv_f2 = static_cast<float>(1.0 / (intrinsics.fx * intrinsics.fy));
   c.min_depth = static_cast<float>(options.min_range_m);
   c.max_depth = static_cast<float>(options.max_range_m);
