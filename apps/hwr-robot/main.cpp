@@ -21,6 +21,7 @@
 #include <filesystem>
 #include <memory>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "hwr/core/file_io.hpp"
@@ -199,7 +200,17 @@ struct Robot {
   hwr::robot::OperatorChannel* operator_channel = nullptr;
   uint64_t detect_errors = 0;
   uint64_t region_detections = 0;
-  uint64_t updated_segments = 0, updated_points_deleted = 0, updated_stream_refused = 0;
+  uint64_t updated_segments = 0, updated_points_deleted = 0;
+  uint64_t updated_stream_refused = 0;  // updated segment versions the link refused a piece of
+  // Updated prior segments on their way to the link, oldest first (stream_updated_segments); sized
+  // for two per prior segment at start-up (one going out, its newest version waiting behind it).
+  struct UpdateToStream {
+    hwr::recon::UpdatedSegment update;
+    int sent = 0;  // points already taken by the link
+  };
+  std::vector<UpdateToStream> updates_to_stream;
+  uint64_t updated_stream_wait_ticks = 0;  // mapping ticks that left a version (or its rest) waiting
+  uint64_t updated_stream_superseded = 0;  // versions replaced by a newer one before they went out
   hwr::hal::StreamMonitor imu{200.0};
   hwr::hal::StreamMonitor camera{30.0};
   uint64_t mag = 0, gnss = 0, gnss_3d = 0;
@@ -315,9 +326,43 @@ void relocalization_step(Robot* r) {
                   r->moved_m, priors);
 }
 
-// Prior segments the map update changed: every version to the ground station as it is made, the
-// latest one (end of run) into the map store.
-void take_updated_segments(Robot* r) {
+// Updated prior segments to the ground station, oldest first, in the streamer's slot-sized pieces,
+// each only when a slot is free for it (MapStreamer::submit_while_free): the map's own batches keep
+// the slots busy while the ground station acknowledges, and a refused piece would be a hole in that
+// version. What the link cannot take yet waits for a later mapping tick. wait_s > 0 (the end of the
+// run): waits up to wait_s in all for slots, then submits the rest all the same (a version with a
+// refused piece is counted and fails the run's exit code, as for the map's own batches).
+void stream_updated_segments(Robot* r, double wait_s) {
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(wait_s);
+  size_t done = 0;
+  for (auto& w : r->updates_to_stream) {
+    const hwr::recon::UpdatedSegment& u = w.update;
+    const auto* pts = reinterpret_cast<const hwr::mapio::ChunkPoint*>(u.record.points_segment.data());
+    const int n = static_cast<int>(u.record.points_segment.size());
+    const auto segment_id = static_cast<int32_t>(u.record.segment_id);
+    bool whole = r->streamer->submit_while_free(segment_id, u.version, u.record.T_world_segment, pts, n, true,
+                                                &w.sent);
+    while (!whole && std::chrono::steady_clock::now() < deadline) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+      whole = r->streamer->submit_while_free(segment_id, u.version, u.record.T_world_segment, pts, n, true,
+                                             &w.sent);
+    }
+    if (!whole && wait_s <= 0) break;  // in order: the rest waits behind this one
+    if (!whole && !r->streamer->submit(segment_id, u.version, u.record.T_world_segment, pts + w.sent, nullptr,
+                                       n - w.sent, true, 0.0)) {
+      ++r->updated_stream_refused;  // the completion is still owed (map_streamer.hpp)
+    }
+    ++done;
+  }
+  if (done < r->updates_to_stream.size()) ++r->updated_stream_wait_ticks;
+  r->updates_to_stream.erase(r->updates_to_stream.begin(),
+                             r->updates_to_stream.begin() + static_cast<ptrdiff_t>(done));
+}
+
+// Prior segments the map update changed: every version towards the ground station as it is made
+// (stream_updated_segments), the latest one (end of run) into the map store. A version not yet begun
+// is replaced by a newer one of the same segment; one partly sent is finished first.
+void take_updated_segments(Robot* r, double stream_wait_s) {
   hwr::recon::UpdatedSegment u;
   while (r->reloc->take_updated(&u)) {
     if (u.final) {
@@ -327,15 +372,19 @@ void take_updated_segments(Robot* r) {
       if (r->segments_updated != nullptr) r->segments_updated->take(std::move(u.record));
       continue;
     }
-    if (r->streamer != nullptr) {
-      const auto& pts = u.record.points_segment;
-      if (!r->streamer->submit(static_cast<int32_t>(u.record.segment_id), u.version, u.record.T_world_segment,
-                               reinterpret_cast<const hwr::mapio::ChunkPoint*>(pts.data()), nullptr,
-                               static_cast<int>(pts.size()), true, 0.0)) {
-        ++r->updated_stream_refused;
-      }
+    if (r->streamer == nullptr) continue;
+    auto waiting = std::find_if(r->updates_to_stream.begin(), r->updates_to_stream.end(),
+                                [&u](const Robot::UpdateToStream& w) {
+                                  return w.sent == 0 && w.update.record.segment_id == u.record.segment_id;
+                                });
+    if (waiting != r->updates_to_stream.end()) {
+      waiting->update = std::move(u);
+      ++r->updated_stream_superseded;
+    } else {
+      r->updates_to_stream.push_back(Robot::UpdateToStream{std::move(u), 0});
     }
   }
+  if (r->streamer != nullptr && !r->updates_to_stream.empty()) stream_updated_segments(r, stream_wait_s);
 }
 
 // --regions truth: each new keyframe "detects" the joints its true pose sees; the mapper places them
@@ -417,7 +466,7 @@ void mapping_task(void* ctx, int64_t now_ns) {
   r->mapper->update(r->estimator->tracker().keyframes(), r->segments);
   if (r->reloc != nullptr) {
     relocalization_step(r);
-    take_updated_segments(r);
+    take_updated_segments(r, 0.0);  // the mapping task never waits for the link
   }
 }
 
@@ -915,6 +964,7 @@ int run(Args args) {
     std::fprintf(stderr, "hwr-robot: prior map %s (run %s): %zu segments, %zu keyframes\n",
                  args.prior_map.c_str(), prior_run_id.c_str(), prior->segments().size(),
                  prior->keyframes().size());
+    robot.updates_to_stream.reserve(2 * prior->segments().size());
     auto w = hwr::recon::RelocalizationWorker::start(std::move(prior.value()),
                                                      hwr::recon::RelocalizationWorkerConfig{},
                                                      info.intrinsics, est_cfg.tracker.orb.max_features);
@@ -1143,7 +1193,7 @@ int run(Args args) {
   if (reloc) {
     // The map update's queued keyframes and open segments, then its last new versions.
     reloc->finish();
-    take_updated_segments(&robot);
+    take_updated_segments(&robot, args.link_wait_s);
   }
   if (store_writer) store_writer->drain();
   if (operator_channel) {
@@ -1307,9 +1357,17 @@ int run(Args args) {
             u.keyframes, rs.keyframes_dropped, u.no_prior_in_view, u.frames_carved + u.frames_misaligned,
             u.frames_misaligned, robot.updated_segments, robot.updated_points_deleted,
             rs.update_error.empty() ? "" : "; error: ", rs.update_error.c_str());
+        if (robot.updated_stream_wait_ticks > 0) {
+          std::printf("map update: updated versions waited %" PRIu64
+                      " mapping ticks for the link's batch slots; %" PRIu64
+                      " versions were replaced by a newer one before they went out\n",
+                      robot.updated_stream_wait_ticks, robot.updated_stream_superseded);
+        }
         if (robot.updated_stream_refused > 0) {
           std::fprintf(stderr,
-                       "hwr-robot: --link: %" PRIu64 " updated segments not streamed (no batch slot)\n",
+                       "hwr-robot: --link: %" PRIu64
+                       " updated prior segment versions not streamed whole (no batch slot freed in "
+                       "--link-wait)\n",
                        robot.updated_stream_refused);
           rc = 1;
         }

@@ -598,6 +598,34 @@ std::string MapStreamer::last_command_error() const {
   return impl_->last_command_error;
 }
 
+bool MapStreamer::would_take(int n, bool segment_complete) const {
+  const Impl& m = *impl_;
+  if (n < 0) return false;
+  const int64_t pieces = std::max<int64_t>(
+      1, (static_cast<int64_t>(n) + m.config.max_batch_points - 1) / m.config.max_batch_points);
+  // Slot rule: a piece without the completion needs 2 free slots when it is taken, the completing
+  // one 1. Taken in order, the last piece is the one that finds the fewest free.
+  const int64_t needed = segment_complete ? pieces : pieces + 1;
+  return static_cast<int64_t>(m.pool.available()) >= needed;
+}
+
+bool MapStreamer::submit_while_free(int32_t segment_id, int32_t segment_version,
+                                    const Eigen::Isometry3d& T_world_segment,
+                                    const ChunkPoint* points_segment, int n, bool segment_complete,
+                                    int* first) {
+  const int piece = impl_->config.max_batch_points;
+  if (*first > n || (*first == n && n > 0)) return true;  // all of it taken already
+  do {                                                    // at least once: an empty batch is one empty piece
+    const int k = std::min(piece, n - *first);
+    const bool completes = segment_complete && *first + k == n;
+    if (!would_take(k, completes)) return false;
+    // Taken: only this thread takes slots, and would_take() saw one free for this piece.
+    submit(segment_id, segment_version, T_world_segment, points_segment + *first, nullptr, k, completes, 0.0);
+    *first += k;
+  } while (*first < n);
+  return true;
+}
+
 MapStreamerStats MapStreamer::stats() const {
   std::lock_guard<std::mutex> lock(impl_->mu);
   MapStreamerStats s = impl_->stats;

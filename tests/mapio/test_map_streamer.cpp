@@ -89,14 +89,15 @@ struct Submitter {
 };
 
 // Segment 0's first batch (100 points) in flight, segment 1's first (200 points) encoded and waiting
-// for the window; both slots free again, and the thread takes nothing more until an ack comes.
-void hold_the_streamer_thread(MapStreamer& s) {
+// for the window; every slot (batch_slots of them) free again, and the thread takes nothing more until
+// an ack comes.
+void hold_the_streamer_thread(MapStreamer& s, int batch_slots = 2) {
   Submitter submit{s};
   ASSERT_TRUE(submit(0, 100, false, 5.0));
   ASSERT_TRUE(wait_until(s, [](const MapStreamerStats& st) { return st.in_flight == 1; }));
   ASSERT_TRUE(submit(1, 200, false, 5.0));
-  ASSERT_TRUE(wait_until(s, [](const MapStreamerStats& st) {
-    return st.chunks == 2 && st.batch_slots_free == 2;
+  ASSERT_TRUE(wait_until(s, [batch_slots](const MapStreamerStats& st) {
+    return st.chunks == 2 && st.batch_slots_free == batch_slots;
   })) << "the streamer thread did not take the second batch";
 }
 
@@ -134,6 +135,45 @@ TEST(MapStreamer, GivenOneSlotFreeThenOnlyACompletingBatchTakesIt) {
   EXPECT_EQ(st.completions_lost, 1);
   EXPECT_EQ(st.batches, 4);
   EXPECT_FALSE(s.flush(0.05));  // nobody acknowledges
+}
+
+// would_take() answers for a batch cut into slot-sized pieces: whether every piece finds a slot under
+// the slot rule. hwr-robot asks it before streaming an updated prior segment, which a partial submit
+// would have to send again in part.
+TEST(MapStreamer, GivenABatchOfSeveralPiecesThenWouldTakeSaysWhetherSubmitTakesAllOfIt) {
+  MapStreamerConfig c = two_slots_one_chunk_window();
+  c.batch_slots = 4;
+  c.max_batch_points = 1000;
+  auto streamer = MapStreamer::start("memq://", "robot-pieces", 1, c);
+  ASSERT_TRUE(streamer.ok()) << streamer.status().message();
+  MapStreamer& s = **streamer;
+  hold_the_streamer_thread(s, c.batch_slots);
+  if (HasFatalFailure()) return;
+  Submitter submit{s};
+
+  // Four free: a completing batch of up to 4 pieces, a non-completing one of up to 3 (its last piece
+  // must leave the kept slot).
+  EXPECT_TRUE(s.would_take(0, true));
+  EXPECT_TRUE(s.would_take(4000, true));
+  EXPECT_FALSE(s.would_take(4001, true));
+  EXPECT_TRUE(s.would_take(3000, false));
+  EXPECT_FALSE(s.would_take(3001, false));
+  EXPECT_FALSE(s.would_take(-1, true));
+
+  // submit() agrees: 4 non-completing pieces take 3 slots and the 4th is refused.
+  EXPECT_FALSE(submit(2, 4000, false));
+  MapStreamerStats st = s.stats();
+  EXPECT_EQ(st.batches, 2 + 3);
+  EXPECT_EQ(st.batches_refused, 1);
+  EXPECT_EQ(st.batch_slots_free, 1);
+
+  // One free: only a completing single piece.
+  EXPECT_FALSE(s.would_take(1, false));
+  EXPECT_TRUE(s.would_take(1000, true));
+  EXPECT_FALSE(s.would_take(1001, true));
+  EXPECT_TRUE(submit(3, 1000, true));
+  EXPECT_FALSE(s.would_take(0, true));  // none free
+  EXPECT_FALSE(s.flush(0.05));          // nobody acknowledges
 }
 
 TEST(MapStreamer, GivenFewerThanTwoSlotsThenStartRefusesTheConfig) {
@@ -185,6 +225,73 @@ class GroundThread {
   std::thread thread_;
   std::atomic<bool> stop_{false};
 };
+
+// submit_while_free() takes a batch's pieces while slots are free for them, never refusing one, and
+// goes on from where it stopped once the streamer thread has freed slots: the ground station gets
+// the whole batch with its completion.
+TEST(MapStreamer, GivenTooFewSlotsForABatchThenSubmitWhileFreeTakesItOverSeveralCallsAndRefusesNothing) {
+  if (!test::in_private_netns()) {
+    HWR_RUN_IN_PRIVATE_NETNS();
+    return;
+  }
+  ASSERT_TRUE(test::setup_private_loopback());
+  const std::string out =
+      (fs::temp_directory_path() / ("hwr_while_free_" + std::to_string(getpid()))).string();
+  fs::remove_all(out);
+  const int64_t run_id = 7;
+  MapStreamerConfig c = two_slots_one_chunk_window();
+  c.batch_slots = 3;
+  c.max_batch_points = 1000;
+  auto streamer = MapStreamer::start(kUdpUrl, "robot-while-free", run_id, c);
+  ASSERT_TRUE(streamer.ok()) << streamer.status().message();
+  MapStreamer& s = **streamer;
+  hold_the_streamer_thread(s, c.batch_slots);  // segments 0 and 1: 100 and 200 points, not complete
+  if (HasFatalFailure()) return;
+
+  // 5500 points: 6 pieces. With 3 slots free, 2 go (a non-completing piece leaves the kept slot).
+  const std::vector<ChunkPoint> pts = grid(5500, 9);
+  int first = 0;
+  EXPECT_FALSE(s.submit_while_free(4, 2, T_world_segment(4), pts.data(), 5500, true, &first));
+  EXPECT_EQ(first, 2000);
+  EXPECT_FALSE(s.submit_while_free(4, 2, T_world_segment(4), pts.data(), 5500, true, &first));
+  EXPECT_EQ(first, 2000) << "no slot was freed, so nothing more may go";
+  MapStreamerStats st = s.stats();
+  EXPECT_EQ(st.batches_refused, 0);
+  EXPECT_EQ(st.batch_slots_free, 1);
+
+  // A ground station acknowledges: the thread frees slots, and the calls go on until all is taken.
+  GroundStationConfig gc;
+  gc.out_dir = out;
+  auto ground = GroundStation::open(gc);
+  ASSERT_TRUE(ground.ok()) << ground.status().message();
+  GroundThread gt(ground->get());
+  ASSERT_TRUE(gt.start().ok());
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(20);
+  bool whole = false;
+  while (!whole && std::chrono::steady_clock::now() < deadline) {
+    whole = s.submit_while_free(4, 2, T_world_segment(4), pts.data(), 5500, true, &first);
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  ASSERT_TRUE(whole) << "taken up to point " << first;
+  EXPECT_EQ(first, 5500);
+  EXPECT_TRUE(s.flush(10.0)) << "not everything was acknowledged";
+  gt.join();
+  st = s.stats();
+  EXPECT_EQ(st.batches_refused, 0);
+  EXPECT_EQ(st.completions_owed, 0);
+  EXPECT_EQ(st.batches, 2 + 6);
+
+  bool found = false;
+  for (const auto& seg : (*ground)->store().segments("robot-while-free", run_id)) {
+    if (seg.segment_id != 4) continue;
+    found = true;
+    EXPECT_EQ(seg.version, 2);
+    EXPECT_TRUE(seg.complete);
+    EXPECT_EQ(seg.points_stored, 5500);
+  }
+  EXPECT_TRUE(found) << "segment 4 never reached the ground station";
+  fs::remove_all(out);
+}
 
 TEST(MapStreamer, GivenTheCompletingBatchRefusedThenTheGroundStationStillSeesTheSegmentComplete) {
   if (!test::in_private_netns()) {

@@ -113,6 +113,19 @@ class MapStreamer {
   bool submit(int32_t segment_id, int32_t segment_version, const Eigen::Isometry3d& T_world_segment,
               const ChunkPoint* points_segment, const uint32_t* ids, int n, bool segment_complete,
               double wait_s = 0.0);
+  // Whether submit() of n points would be taken whole right now without waiting: every slot-sized
+  // piece finds a slot under the slot rule. Only the submitting thread takes slots (the streamer
+  // thread only frees them), so on that thread a true stays true until it submits.
+  bool would_take(int n, bool segment_complete) const;
+  // Mapping task: a batch that must reach the ground station whole, sent over as many calls as the
+  // slots allow. Submits its slot-sized pieces from point *first on, each only while a slot is free
+  // for it (never refused, never waits), and advances *first past them. True once the whole batch,
+  // its completion included, has been taken (an empty completing batch takes one empty piece);
+  // false: call again later with the same arguments. hwr-robot streams updated prior segments so:
+  // a refused piece would be a hole in that version.
+  bool submit_while_free(int32_t segment_id, int32_t segment_version,
+                         const Eigen::Isometry3d& T_world_segment, const ChunkPoint* points_segment, int n,
+                         bool segment_complete, int* first);
   // Telemetry, published by the streamer thread so the caller never waits on the network:
   // HWR_POSE (a ring of 64 poses; a full ring drops the oldest, counted in stats) and HWR_STATUS
   // (the latest one replaces one not yet sent). robot_id and run_id are filled in.
