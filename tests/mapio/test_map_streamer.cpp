@@ -226,6 +226,18 @@ class GroundThread {
   std::atomic<bool> stop_{false};
 };
 
+// A ground station storing under out_dir, listening and acknowledging on its own thread.
+core::Status start_listening_ground(const std::string& out_dir, std::unique_ptr<GroundStation>* station,
+                                    std::unique_ptr<GroundThread>* thread) {
+  GroundStationConfig gc;
+  gc.out_dir = out_dir;
+  auto ground = GroundStation::open(gc);
+  if (!ground.ok()) return ground.status();
+  *station = std::move(ground.value());
+  *thread = std::make_unique<GroundThread>(station->get());
+  return (*thread)->start();
+}
+
 // submit_while_free() takes a batch's pieces while slots are free for them, never refusing one, and
 // goes on from where it stopped once the streamer thread has freed slots: the ground station gets
 // the whole batch with its completion.
@@ -260,12 +272,10 @@ TEST(MapStreamer, GivenTooFewSlotsForABatchThenSubmitWhileFreeTakesItOverSeveral
   EXPECT_EQ(st.batch_slots_free, 1);
 
   // A ground station acknowledges: the thread frees slots, and the calls go on until all is taken.
-  GroundStationConfig gc;
-  gc.out_dir = out;
-  auto ground = GroundStation::open(gc);
-  ASSERT_TRUE(ground.ok()) << ground.status().message();
-  GroundThread gt(ground->get());
-  ASSERT_TRUE(gt.start().ok());
+  std::unique_ptr<GroundStation> ground;
+  std::unique_ptr<GroundThread> gt;
+  const core::Status started = start_listening_ground(out, &ground, &gt);
+  ASSERT_TRUE(started.ok()) << started.message();
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(20);
   bool whole = false;
   while (!whole && std::chrono::steady_clock::now() < deadline) {
@@ -275,14 +285,14 @@ TEST(MapStreamer, GivenTooFewSlotsForABatchThenSubmitWhileFreeTakesItOverSeveral
   ASSERT_TRUE(whole) << "taken up to point " << first;
   EXPECT_EQ(first, 5500);
   EXPECT_TRUE(s.flush(10.0)) << "not everything was acknowledged";
-  gt.join();
+  gt->join();
   st = s.stats();
   EXPECT_EQ(st.batches_refused, 0);
   EXPECT_EQ(st.completions_owed, 0);
   EXPECT_EQ(st.batches, 2 + 6);
 
   bool found = false;
-  for (const auto& seg : (*ground)->store().segments("robot-while-free", run_id)) {
+  for (const auto& seg : ground->store().segments("robot-while-free", run_id)) {
     if (seg.segment_id != 4) continue;
     found = true;
     EXPECT_EQ(seg.version, 2);
@@ -317,14 +327,12 @@ TEST(MapStreamer, GivenTheCompletingBatchRefusedThenTheGroundStationStillSeesThe
   EXPECT_EQ(st.completions_owed, 1);
 
   // Only now does a ground station listen (the chunks sent so far went nowhere).
-  GroundStationConfig gc;
-  gc.out_dir = out;
-  auto ground = GroundStation::open(gc);
-  ASSERT_TRUE(ground.ok()) << ground.status().message();
-  GroundThread gt(ground->get());
-  ASSERT_TRUE(gt.start().ok());
+  std::unique_ptr<GroundStation> ground;
+  std::unique_ptr<GroundThread> gt;
+  const core::Status started = start_listening_ground(out, &ground, &gt);
+  ASSERT_TRUE(started.ok()) << started.message();
   EXPECT_TRUE(s.flush(10.0)) << "not everything was acknowledged";
-  gt.join();
+  gt->join();
 
   st = s.stats();
   EXPECT_EQ(st.chunks, 4);  // batches with points: 100, 200, 300, 500
@@ -332,7 +340,7 @@ TEST(MapStreamer, GivenTheCompletingBatchRefusedThenTheGroundStationStillSeesThe
   EXPECT_EQ(st.completions_owed, 1);
   EXPECT_EQ(st.completions_lost, 0);
 
-  const GroundStore& store = (*ground)->store();
+  const GroundStore& store = ground->store();
   const auto segs = store.segments("robot-owed", run_id);
   ASSERT_EQ(segs.size(), 2u);
   EXPECT_EQ(segs[0].segment_id, 0);
@@ -356,7 +364,8 @@ TEST(MapStreamer, GivenTheCompletingBatchRefusedThenTheGroundStationStillSeesThe
   EXPECT_DOUBLE_EQ(chunks[2].T_world_segment[3], 10.0);  // segment 1's pose, as submitted
   EXPECT_DOUBLE_EQ(chunks[2].T_world_segment[7], 1.0);
   streamer->reset();
-  ground->reset();
+  gt.reset();
+  ground.reset();
   fs::remove_all(out);
 }
 
